@@ -1,0 +1,42 @@
+# Two commands for a fresh machine: `make demo` and `make test` (see README).
+# Both create .venv on first use and are idempotent: the install step re-runs only when
+# pyproject.toml changes.
+
+PYTHON ?= python3
+VENV ?= .venv
+PY := $(VENV)/bin/python
+# Torch is pinned to a CPU build before anything else: left to stable-baselines3, pip would
+# pick a CUDA build of several GB. On Linux machines without a local CPU wheel, set
+# TORCH_PIP_ARGS="--index-url <the PyTorch CPU wheel index>" (see README).
+TORCH_SPEC ?= torch==2.13.0
+TORCH_PIP_ARGS ?=
+DEMO_OUT ?= demo_out
+
+.PHONY: demo test install install-dev lint bench clean
+
+$(VENV)/.stamp-base:
+	$(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet "$(TORCH_SPEC)" $(TORCH_PIP_ARGS)
+	@touch $@
+
+$(VENV)/.stamp-install: $(VENV)/.stamp-base pyproject.toml
+	$(PY) -m pip install --quiet -e ".[dev]"
+	@touch $@
+
+install: $(VENV)/.stamp-install
+
+demo: install
+	$(PY) -m pour_gym.cli demo --out $(DEMO_OUT)
+
+test: install
+	$(PY) -m pytest -q
+
+lint: install
+	$(VENV)/bin/ruff check .
+	$(VENV)/bin/ruff format --check .
+
+bench: install
+	$(PY) -m pour_gym.cli bench reconstruct
+
+clean:
+	rm -rf $(VENV) $(DEMO_OUT) build *.egg-info
