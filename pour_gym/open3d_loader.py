@@ -28,4 +28,6 @@ def open3d() -> ModuleType:
 
         ctypes.CDLL(str(libusb_package.get_library_path()), mode=ctypes.RTLD_GLOBAL)
         _open3d = importlib.import_module("open3d")
+    # open3d logs warnings to stdout, which must stay clean for --json output.
+    _open3d.utility.set_verbosity_level(_open3d.utility.VerbosityLevel.Error)
     return _open3d

@@ -33,6 +33,19 @@ def _face_colors(mesh: trimesh.Trimesh, labels: np.ndarray | None) -> np.ndarray
     return np.clip(base * shade[:, None], 0.0, 1.0)
 
 
+def _decimate(mesh: trimesh.Trimesh, faces: int) -> trimesh.Trimesh:
+    """Quadric decimation to about ``faces`` triangles (matplotlib draws every polygon)."""
+    from pour_gym.open3d_loader import open3d
+
+    o3d = open3d()
+    m = o3d.geometry.TriangleMesh(
+        o3d.utility.Vector3dVector(np.asarray(mesh.vertices)),
+        o3d.utility.Vector3iVector(np.asarray(mesh.faces)),
+    )
+    m = m.simplify_quadric_decimation(target_number_of_triangles=faces)
+    return trimesh.Trimesh(np.asarray(m.vertices), np.asarray(m.triangles), process=False)
+
+
 def _set_equal_axes(ax, points: np.ndarray) -> None:
     lo, hi = points.min(axis=0), points.max(axis=0)
     centre, half = (lo + hi) / 2.0, (hi - lo).max() / 2.0
@@ -64,6 +77,8 @@ def render_mesh(
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
+    if len(mesh.faces) > max_faces and labels is None:
+        mesh = _decimate(mesh, max_faces)
     colors = _face_colors(mesh, labels)
     faces = np.asarray(mesh.faces)
     if len(faces) > max_faces:

@@ -1,0 +1,104 @@
+"""Benchmarks: ``pour-gym bench ...``. Timings are medians of repeated runs in one session.
+
+Reconstruction runs each repeat in a fresh Python process, so that the peak resident
+memory it reports (``ru_maxrss``) belongs to that run alone.
+"""
+
+from __future__ import annotations
+
+import json
+import statistics
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+from pour_gym.objects import build_object
+from pour_gym.scan import ScanConfig, turntable_scan
+
+_RUNNER = """
+import json, resource, sys, time
+import numpy as np
+from pour_gym.reconstruct import reconstruct
+from pour_gym.scan import PointCloud
+data = np.load(sys.argv[1])
+base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+t = time.perf_counter()
+rec = reconstruct(PointCloud(points=data[:, :3], normals=data[:, 3:]))
+seconds = time.perf_counter() - t
+peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+print(json.dumps({"seconds": seconds, "peak_mb": peak / 1024, "import_mb": base / 1024,
+                  "stages": rec.seconds, "watertight": bool(rec.mesh.is_watertight)}))
+"""
+
+
+def _dense_scan() -> np.ndarray:
+    """A dense scan of the red cup (about 400k points with normals)."""
+    cup = build_object("red_cup")
+    cfg = ScanConfig(views=48, width=400, height=300, elevations_deg=(5.0, 20.0, 35.0))
+    cloud = turntable_scan(cup.mesh, cup.labels, cfg)
+    return np.hstack([cloud.points, cloud.normals])
+
+
+def bench_reconstruct(sizes: list[int], repeats: int = 3, seed: int = 0) -> list[dict]:
+    """Time and peak memory of :func:`pour_gym.reconstruct.reconstruct` per cloud size.
+
+    Args:
+        sizes: numbers of points, drawn without replacement from a dense scan of the red cup.
+        repeats: runs per size; the table holds medians.
+        seed: seed of the subsampling.
+
+    Returns:
+        One row per size: ``n_points``, ``seconds`` and ``peak_mb`` (medians), ``runs``.
+    """
+    dense = _dense_scan()
+    if max(sizes) > len(dense):
+        raise ValueError(f"the dense scan has {len(dense)} points; largest size is {max(sizes)}")
+    rng = np.random.default_rng(seed)
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        warm = Path(tmp) / "warm.npy"
+        np.save(warm, dense[rng.choice(len(dense), 2000, replace=False)])
+        # The first run compiles the numba kernels into the cache; it is not timed.
+        subprocess.run([sys.executable, "-c", _RUNNER, str(warm)], check=True, capture_output=True)
+        bar = tqdm(total=len(sizes) * repeats, desc="bench reconstruct", file=sys.stderr)
+        for n in sizes:
+            path = Path(tmp) / f"cloud_{n}.npy"
+            np.save(path, dense[rng.choice(len(dense), n, replace=False)])
+            runs = []
+            for _ in range(repeats):
+                out = subprocess.run(
+                    [sys.executable, "-c", _RUNNER, str(path)],
+                    check=True,
+                    capture_output=True,
+                    text=True,
+                )
+                runs.append(json.loads(out.stdout.strip().splitlines()[-1]))
+                bar.update()
+            rows.append(
+                {
+                    "n_points": n,
+                    "seconds": statistics.median(r["seconds"] for r in runs),
+                    "peak_mb": statistics.median(r["peak_mb"] for r in runs),
+                    "import_mb": statistics.median(r["import_mb"] for r in runs),
+                    "runs": runs,
+                }
+            )
+        bar.close()
+    return rows
+
+
+def reconstruct_table(rows: list[dict]) -> str:
+    """Markdown table of :func:`bench_reconstruct` rows."""
+    lines = [
+        "| points | seconds (median) | peak memory MB | of which imports MB |",
+        "|---:|---:|---:|---:|",
+    ]
+    for r in rows:
+        lines.append(
+            f"| {r['n_points']} | {r['seconds']:.2f} | {r['peak_mb']:.0f} | {r['import_mb']:.0f} |"
+        )
+    return "\n".join(lines)

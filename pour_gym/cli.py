@@ -1,0 +1,301 @@
+"""The ``pour-gym`` command line.
+
+Every subcommand with ``--json`` prints exactly one JSON document on stdout and nothing
+else: while it works, anything written to the process's stdout (by C libraries too) goes
+to stderr. Tables and progress go to stderr, or to stdout without ``--json``. Bad input
+ends with a one-line message and exit status 2, never a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import json
+import os
+import sys
+from collections.abc import Callable, Iterator
+from pathlib import Path
+
+from pour_gym.errors import InputError
+
+
+@contextlib.contextmanager
+def stdout_to_stderr() -> Iterator[None]:
+    """Send everything written to file descriptor 1 to descriptor 2 for the duration."""
+    sys.stdout.flush()
+    saved = os.dup(1)
+    try:
+        os.dup2(2, 1)
+        yield
+    finally:
+        sys.stdout.flush()
+        os.dup2(saved, 1)
+        os.close(saved)
+
+
+Output = tuple[object, Callable[[], str]]
+"""What a command returns: the JSON document and a function that formats it as text."""
+
+
+def _fmt_table(rows: list[list[str]], header: list[str]) -> str:
+    widths = [max(len(str(r[i])) for r in [header, *rows]) for i in range(len(header))]
+    line = "  ".join(f"{{:<{w}}}" for w in widths)
+    out = [line.format(*header), line.format(*["-" * w for w in widths])]
+    out += [line.format(*map(str, r)) for r in rows]
+    return "\n".join(out)
+
+
+def cmd_objects(args: argparse.Namespace) -> Output:
+    """List the thesis objects with their real dimensions."""
+    from pour_gym.objects import SPECS
+
+    doc = [
+        {
+            "name": s.name,
+            "title": s.title,
+            "height": s.height,
+            "rim_radius": s.rim_radius,
+            "volume": s.volume,
+            "handle": s.handle,
+        }
+        for s in SPECS.values()
+    ]
+
+    def text() -> str:
+        rows = [
+            [
+                d["name"],
+                f"{d['height'] * 100:.2f}",
+                f"{d['rim_radius'] * 100:.2f}",
+                f"{d['volume'] * 1e6:.0f}",
+                "yes" if d["handle"] else "no",
+            ]
+            for d in doc
+        ]
+        return _fmt_table(rows, ["name", "height cm", "rim radius cm", "volume ml", "handle"])
+
+    return (doc, text)
+
+
+def _mesh_or_object(source: str, scale: float):
+    """A catalogue object's mesh and labels, or a mesh file's mesh (labels None)."""
+    from pour_gym.fileio import MESH_SUFFIXES, load_mesh, validate_mesh
+    from pour_gym.objects import OBJECT_NAMES, build_object
+
+    if source in OBJECT_NAMES:
+        model = build_object(source)
+        return model.mesh, model.labels
+    if Path(source).suffix.lower() in MESH_SUFFIXES or Path(source).exists():
+        mesh = load_mesh(source, scale)
+        validate_mesh(mesh, name=source)
+        return mesh, None
+    raise InputError(
+        f"{source!r} is neither a thesis object ({', '.join(OBJECT_NAMES)}) nor a mesh file"
+    )
+
+
+def cmd_scan(args: argparse.Namespace) -> Output:
+    """Scan an object or a mesh file on the simulated turntable."""
+    from pour_gym.fileio import save_point_cloud
+    from pour_gym.scan import ScanConfig, turntable_scan
+
+    mesh, labels = _mesh_or_object(args.source, args.scale)
+    cfg = ScanConfig(views=args.views, noise=args.noise, seed=args.seed)
+    cloud = turntable_scan(mesh, labels, cfg)
+    out = save_point_cloud(cloud, args.out)
+    if args.png:
+        from pour_gym.render import render_points
+
+        render_points(cloud.points, args.png, title=f"scan of {args.source}")
+    doc = {"out": str(out), "n_points": len(cloud.points), "config": cfg.to_dict()}
+    return (doc, lambda: f"wrote {len(cloud.points)} points to {out}")
+
+
+def cmd_reconstruct(args: argparse.Namespace) -> Output:
+    """Reconstruct a mesh from a scan of a catalogue object or from a point cloud file."""
+    from pour_gym.fileio import load_point_cloud, save_mesh
+    from pour_gym.modelgen import generate_model
+    from pour_gym.objects import get_spec
+    from pour_gym.reconstruct import ReconstructConfig
+
+    if (args.object is None) == (args.points is None):
+        raise InputError("give either an OBJECT name or --points FILE, not both or neither")
+    if args.object is not None:
+        get_spec(args.object)
+    cfg = ReconstructConfig(
+        sigma=args.sigma, voxel=args.voxel, wall=args.wall, inner=args.inner
+    )
+    cloud = load_point_cloud(args.points, args.scale) if args.points else None
+    result = generate_model(args.object, cloud, cfg)
+    mesh_path = save_mesh(result.reconstruction.mesh, args.out)
+    report = dict(result.report, mesh=str(mesh_path))
+    report_path = mesh_path.with_suffix(".json")
+    report_path.write_text(json.dumps(report, indent=2))
+    report["report"] = str(report_path)
+    if args.png:
+        from pour_gym.render import render_mesh
+
+        render_mesh(result.reconstruction.mesh, args.png, title=mesh_path.stem)
+        report["png"] = str(args.png)
+    return (report, lambda: _reconstruct_text(report))
+
+
+def _reconstruct_text(report: dict) -> str:
+    """A table of the report's dimensions per model (and errors for catalogue objects)."""
+    rows = []
+    for model, m in report["models"].items():
+        err = m.get("errors")
+        row = [
+            model + (" *" if model == report["inner"] else ""),
+            f"{m['height'] * 100:.2f}",
+            f"{m['rim_radius'] * 100:.2f}",
+            f"{m['volume'] * 1e6:.1f}",
+        ]
+        if err:
+            row += [
+                f"{err['height']['rel_error']:.1%}",
+                f"{err['rim_radius']['rel_error']:.1%}",
+                f"{err['volume']['rel_error']:.1%}",
+                f"{m['chamfer_distance'] * 1000:.2f}",
+            ]
+        rows.append(row)
+    header = ["model", "height cm", "radius cm", "volume ml"]
+    if "thesis" in report:
+        t = report["thesis"]
+        rows.append(
+            [
+                "thesis (paper)",
+                f"{t['height']['measured'] * 100:.2f}",
+                f"{t['rim_radius']['measured'] * 100:.2f}",
+                f"{t['volume']['measured'] * 1e6:.1f}",
+                f"{t['height']['rel_error']:.1%}",
+                f"{t['rim_radius']['rel_error']:.1%}",
+                f"{t['volume']['rel_error']:.1%}",
+                "-",
+            ]
+        )
+        header += ["height err", "radius err", "volume err", "chamfer mm"]
+    lines = [
+        f"{report['n_points']} points, {report['seconds']:.1f} s; mesh: {report['mesh']} "
+        f"(report {report['report']}); * = the written model",
+        _fmt_table(rows, header),
+    ]
+    return "\n".join(lines)
+
+
+def cmd_measure(args: argparse.Namespace) -> Output:
+    """Height, rim radius and holding volume of an upright watertight mesh."""
+    from pour_gym.measure import container_dimensions
+
+    mesh, _ = _mesh_or_object(args.source, args.scale)
+    from pour_gym.fileio import validate_mesh
+
+    validate_mesh(mesh, name=args.source, watertight=True)
+    d = container_dimensions(mesh)
+    doc = {
+        "height": d.height,
+        "rim_radius": d.rim_radius,
+        "rim_center": list(d.rim_center),
+        "volume": d.volume,
+    }
+    return (
+        doc,
+        lambda: (
+            f"height {d.height * 100:.2f} cm, rim radius {d.rim_radius * 100:.2f} cm, "
+            f"holds {d.volume * 1e6:.1f} ml"
+        ),
+    )
+
+
+def cmd_bench(args: argparse.Namespace) -> Output:
+    """Benchmarks."""
+    from pour_gym.bench import bench_reconstruct, reconstruct_table
+
+    sizes = [int(s) for s in args.sizes.split(",")]
+    rows = bench_reconstruct(sizes, repeats=args.repeats)
+    return ({"reconstruct": rows}, lambda: reconstruct_table(rows))
+
+
+def cmd_demo(args: argparse.Namespace) -> Output:
+    """The main job: rebuild one thesis object from a simulated scan."""
+    from pour_gym.demo import run_demo
+
+    summary = run_demo(Path(args.out), args.object)
+    return (summary, lambda: summary["text"])
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of ``pour-gym``."""
+    from pour_gym import __version__
+
+    parser = argparse.ArgumentParser(
+        prog="pour-gym",
+        description="Learning to pour with warped features: model generation, warping, "
+        "fluid, environments.",
+    )
+    parser.add_argument("--version", action="version", version=f"pour-gym {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    def add(name: str, func: Callable, help_: str) -> argparse.ArgumentParser:
+        p = sub.add_parser(name, help=help_, description=help_)
+        p.add_argument("--json", action="store_true", help="print one JSON document")
+        p.set_defaults(func=func)
+        return p
+
+    add("objects", cmd_objects, "list the thesis objects and their real dimensions")
+
+    p = add("scan", cmd_scan, "simulated turntable depth scan of an object or mesh file")
+    p.add_argument("source", help="thesis object name or mesh file (OBJ/STL/PLY/GLB)")
+    p.add_argument("--out", required=True, help="output cloud (.ply, .pcd, .xyz, .npy)")
+    p.add_argument("--views", type=int, default=24, help="turntable steps per revolution")
+    p.add_argument("--noise", type=float, default=0.0005, help="depth noise std, m")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--scale", type=float, default=1.0, help="mesh units to m (0.001 for mm)")
+    p.add_argument("--png", help="also write a picture of the cloud")
+
+    p = add("reconstruct", cmd_reconstruct, "point cloud -> implicit surface -> mesh (ch. 3)")
+    p.add_argument("object", nargs="?", help="thesis object to scan and rebuild")
+    p.add_argument("--points", help="point cloud file instead (.ply, .pcd, .xyz, .npy)")
+    p.add_argument("--out", required=True, help="output mesh (.obj, .stl, .ply, .glb)")
+    p.add_argument("--inner", choices=["thesis", "offset"], default="offset")
+    p.add_argument("--wall", type=float, default=0.004, help="wall thickness, m (offset)")
+    p.add_argument("--sigma", type=float, default=0.01, help="Gaussian kernel width, m")
+    p.add_argument("--voxel", type=float, default=0.00125, help="marching-cubes voxel, m")
+    p.add_argument("--scale", type=float, default=1.0, help="cloud units to m (0.001 for mm)")
+    p.add_argument("--png", help="also write a picture of the mesh")
+
+    p = add("measure", cmd_measure, "height, rim radius and holding volume of a mesh")
+    p.add_argument("source", help="thesis object name or watertight mesh file, upright")
+    p.add_argument("--scale", type=float, default=1.0, help="mesh units to m")
+
+    p = add("bench", cmd_bench, "benchmarks (medians of repeated runs)")
+    p.add_argument("what", choices=["reconstruct"])
+    p.add_argument("--sizes", default="5000,10000,25000,50000,100000")
+    p.add_argument("--repeats", type=int, default=3)
+
+    p = add("demo", cmd_demo, "rebuild a thesis object from a scan; write mesh, PNG, JSON")
+    p.add_argument("--out", default="demo_out")
+    p.add_argument("--object", default="red_cup")
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the command line; returns the exit status."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        if args.json:
+            with stdout_to_stderr():
+                doc, _ = args.func(args)
+            print(json.dumps(doc, indent=2))
+        else:
+            _, text = args.func(args)
+            print(text())
+    except InputError as exc:
+        print(f"pour-gym {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,77 @@
+"""The command line: JSON on stdout and nothing else, clear errors, working outputs."""
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from pour_gym.fileio import save_point_cloud
+from pour_gym.scan import ScanConfig, turntable_scan
+
+
+def run(*args, check=True):
+    proc = subprocess.run(
+        [sys.executable, "-m", "pour_gym.cli", *args], capture_output=True, text=True
+    )
+    if check:
+        assert proc.returncode == 0, proc.stderr
+    return proc
+
+
+def test_objects_json_lists_nine_in_si_units():
+    doc = json.loads(run("objects", "--json").stdout)
+    assert len(doc) == 9
+    red = next(d for d in doc if d["name"] == "red_cup")
+    assert red["height"] == pytest.approx(0.087)
+    assert red["rim_radius"] == pytest.approx(0.04)
+    assert red["volume"] == pytest.approx(265e-6)
+
+
+def test_unknown_object_is_a_one_line_error():
+    proc = run("reconstruct", "teacup", "--out", "x.obj", check=False)
+    assert proc.returncode == 2
+    assert "unknown object 'teacup'" in proc.stderr and "red_cup" in proc.stderr
+    assert "Traceback" not in proc.stderr
+
+
+def test_scan_then_reconstruct_a_user_cloud(tmp_path, models):
+    cup = models["very_small_cup"]
+    cloud = turntable_scan(cup.mesh, cup.labels, ScanConfig(views=12, width=120, height=90))
+    # The user's file has no normals and is in millimetres.
+    cloud.points *= 1000.0
+    cloud.normals = None
+    src = save_point_cloud(cloud, tmp_path / "cup_mm.xyz")
+    proc = run("reconstruct", "--points", str(src), "--out", str(tmp_path / "cup.obj"), "--json", check=False)
+    assert proc.returncode == 2 and "millimetres" in proc.stderr and proc.stdout == ""
+    proc = run(
+        "reconstruct", "--points", str(src), "--scale", "0.001",
+        "--out", str(tmp_path / "cup.obj"), "--json",
+    )
+    doc = json.loads(proc.stdout)  # the whole of stdout is one JSON document
+    assert doc["n_points"] == len(cloud.points)
+    assert doc["seconds"] > 0
+    assert (tmp_path / "cup.obj").exists() and (tmp_path / "cup.json").exists()
+    offset = doc["models"]["offset"]
+    assert offset["height"] == pytest.approx(0.067, rel=0.05)
+    assert offset["volume"] == pytest.approx(170e-6, rel=0.2)
+
+
+def test_scan_command_writes_a_cloud(tmp_path):
+    out = tmp_path / "red.ply"
+    doc = json.loads(run("scan", "red_cup", "--out", str(out), "--views", "6", "--json").stdout)
+    assert out.exists() and doc["n_points"] > 1000
+
+
+def test_measure_needs_a_watertight_mesh(tmp_path):
+    import trimesh
+
+    box = trimesh.creation.box([0.05, 0.05, 0.05])
+    box.update_faces(np.arange(12) > 0)
+    path = tmp_path / "open.stl"
+    box.export(path)
+    proc = run("measure", str(path), check=False)
+    assert proc.returncode == 2 and "not watertight" in proc.stderr
+    doc = json.loads(run("measure", "standard_bowl", "--json").stdout)
+    assert doc["volume"] == pytest.approx(1038e-6, rel=0.01)

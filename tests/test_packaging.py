@@ -1,0 +1,36 @@
+"""The built wheel carries the subpackages and the asset files."""
+
+import subprocess
+import sys
+import zipfile
+
+from pour_gym.assets import real_mesh_path
+
+
+def test_wheel_contents(tmp_path):
+    subprocess.run(
+        [sys.executable, "-m", "pip", "wheel", ".", "--no-deps", "--no-build-isolation",
+         "-q", "-w", str(tmp_path)],
+        check=True,
+        capture_output=True,
+    )
+    (wheel,) = tmp_path.glob("pour_gym-*.whl")
+    names = set(zipfile.ZipFile(wheel).namelist())
+    for required in [
+        "pour_gym/__init__.py",
+        "pour_gym/envs/__init__.py",
+        "pour_gym/agents/__init__.py",
+        "pour_gym/asset_files/ycb/025_mug.obj",
+        "pour_gym/asset_files/ycb/024_bowl.obj",
+        "pour_gym/asset_files/ycb/README.md",
+    ]:
+        assert required in names, required
+    assert not any(n.startswith(("envs/", "agents/", "assets/", "tests/")) for n in names)
+
+
+def test_packaged_meshes_resolve():
+    import pour_gym.agents  # noqa: F401
+    import pour_gym.envs
+
+    assert isinstance(pour_gym.envs.ENV_IDS, tuple)
+    assert real_mesh_path("ycb_mug").is_file()
