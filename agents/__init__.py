@@ -1,2 +1,5 @@
-"""Agents of pour-gym, installed as ``pour_gym.agents``: the thesis's classifiers and
-pouring policy, SB3 training helpers and policy search, as the environments arrive."""
+"""Agents of pour-gym, installed as ``pour_gym.agents``.
+
+The thesis's classifiers and pouring policy, SB3 training helpers and policy search live
+here as the environments arrive.
+"""

@@ -16,6 +16,8 @@ import sys
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
+import numpy as np
+
 from pour_gym.errors import InputError
 
 
@@ -60,6 +62,12 @@ def cmd_objects(args: argparse.Namespace) -> Output:
         }
         for s in SPECS.values()
     ]
+    if args.png:
+        from pour_gym.objects import build_object
+        from pour_gym.render import render_gallery
+
+        models = [build_object(name) for name in SPECS]
+        render_gallery([(m.spec.title, m.mesh, m.labels) for m in models], args.png)
 
     def text() -> str:
         rows = [
@@ -122,9 +130,7 @@ def cmd_reconstruct(args: argparse.Namespace) -> Output:
         raise InputError("give either an OBJECT name or --points FILE, not both or neither")
     if args.object is not None:
         get_spec(args.object)
-    cfg = ReconstructConfig(
-        sigma=args.sigma, voxel=args.voxel, wall=args.wall, inner=args.inner
-    )
+    cfg = ReconstructConfig(sigma=args.sigma, voxel=args.voxel, wall=args.wall, inner=args.inner)
     cloud = load_point_cloud(args.points, args.scale) if args.points else None
     result = generate_model(args.object, cloud, cfg)
     mesh_path = save_mesh(result.reconstruction.mesh, args.out)
@@ -207,6 +213,53 @@ def cmd_measure(args: argparse.Namespace) -> Output:
     )
 
 
+def cmd_report(args: argparse.Namespace) -> Output:
+    """Tables beside the thesis's: reconstruction errors per object (Tables 4.1-4.3)."""
+    from tqdm import tqdm
+
+    from pour_gym.modelgen import generate_model
+    from pour_gym.objects import OBJECT_NAMES
+
+    reports = {
+        name: generate_model(name).report
+        for name in tqdm(OBJECT_NAMES, desc="scan + reconstruct", file=sys.stderr)
+    }
+    return (reports, lambda: reconstruction_table(reports))
+
+
+def reconstruction_table(reports: dict[str, dict]) -> str:
+    """Markdown table of relative errors per object: thesis paper, thesis model, offset."""
+    quantities = ("height", "rim_radius", "volume")
+    header = (
+        "| object | "
+        + " | ".join(
+            f"{q} {src}"
+            for q in ("height", "radius", "volume")
+            for src in ("paper", "thesis", "offset")
+        )
+        + " | chamfer mm (thesis / offset) |"
+    )
+    lines = [header, "|---" + "|---:" * 10 + "|"]
+    sums = np.zeros(9)
+    for name, r in reports.items():
+        cells = []
+        for q in quantities:
+            cells += [
+                r["thesis"][q]["rel_error"],
+                r["models"]["thesis"]["errors"][q]["rel_error"],
+                r["models"]["offset"]["errors"][q]["rel_error"],
+            ]
+        sums += cells
+        chamfer = "{:.2f} / {:.2f}".format(
+            r["models"]["thesis"]["chamfer_distance"] * 1000,
+            r["models"]["offset"]["chamfer_distance"] * 1000,
+        )
+        lines.append(f"| {name} | " + " | ".join(f"{c:.1%}" for c in cells) + f" | {chamfer} |")
+    mean = sums / len(reports)
+    lines.append("| **mean** | " + " | ".join(f"**{c:.1%}**" for c in mean) + " | |")
+    return "\n".join(lines)
+
+
 def cmd_bench(args: argparse.Namespace) -> Output:
     """Benchmarks."""
     from pour_gym.bench import bench_reconstruct, reconstruct_table
@@ -242,7 +295,8 @@ def build_parser() -> argparse.ArgumentParser:
         p.set_defaults(func=func)
         return p
 
-    add("objects", cmd_objects, "list the thesis objects and their real dimensions")
+    p = add("objects", cmd_objects, "list the thesis objects and their real dimensions")
+    p.add_argument("--png", help="also draw all of them, labelled, into this PNG")
 
     p = add("scan", cmd_scan, "simulated turntable depth scan of an object or mesh file")
     p.add_argument("source", help="thesis object name or mesh file (OBJ/STL/PLY/GLB)")
@@ -267,6 +321,9 @@ def build_parser() -> argparse.ArgumentParser:
     p = add("measure", cmd_measure, "height, rim radius and holding volume of a mesh")
     p.add_argument("source", help="thesis object name or watertight mesh file, upright")
     p.add_argument("--scale", type=float, default=1.0, help="mesh units to m")
+
+    p = add("report", cmd_report, "tables beside the thesis's (scan + reconstruct all objects)")
+    p.add_argument("what", choices=["reconstruction"])
 
     p = add("bench", cmd_bench, "benchmarks (medians of repeated runs)")
     p.add_argument("what", choices=["reconstruct"])

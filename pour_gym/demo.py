@@ -12,12 +12,12 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
+import matplotlib.pyplot as plt
 
-from pour_gym.fileio import save_mesh, save_point_cloud  # noqa: E402
-from pour_gym.modelgen import generate_model  # noqa: E402
-from pour_gym.objects import build_object  # noqa: E402
-from pour_gym.render import render_mesh, render_points  # noqa: E402
+from pour_gym.fileio import save_mesh, save_point_cloud
+from pour_gym.modelgen import generate_model
+from pour_gym.objects import build_object
+from pour_gym.render import render_mesh, render_points
 
 
 def _side_by_side(paths: list[Path], titles: list[str], out: Path) -> Path:
@@ -57,8 +57,11 @@ def run_demo(out: Path, obj: str = "red_cup") -> dict:
     ]
     png = _side_by_side(
         parts,
-        ["ground truth (labelled)", f"turntable scan, {len(result.cloud.points)} points",
-         "reconstruction (offset inner model)"],
+        [
+            "ground truth (labelled)",
+            f"turntable scan, {len(result.cloud.points)} points",
+            "reconstruction (offset inner model)",
+        ],
         out / f"{obj}.png",
     )
     for p in parts:

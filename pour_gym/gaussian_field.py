@@ -23,12 +23,17 @@ Memory is then O(M * neighbours) for M inducing points, independent of the scan'
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numba as nb
 import numpy as np
 from scipy.sparse import csr_matrix, diags
 from scipy.sparse.linalg import cg
+
+# numba falls back from TBB to its other threading layers by itself; on machines with an
+# old TBB it says so on every first parallel call, which is noise for users.
+warnings.filterwarnings("ignore", message="The TBB threading layer requires TBB")
 
 
 @nb.njit(cache=True)

@@ -158,9 +158,7 @@ def _holds_water(empty: np.ndarray, seed: tuple[int, int, int], level: int) -> t
     return True, int(np.count_nonzero(labels == own))
 
 
-def holding_volume_from_grid(
-    occupied: np.ndarray, voxel: float, seed_xy: tuple[int, int]
-) -> float:
+def holding_volume_from_grid(occupied: np.ndarray, voxel: float, seed_xy: tuple[int, int]) -> float:
     """Holding volume of a voxelised upright container.
 
     The water is seeded in the first empty voxel above the base in column ``seed_xy`` (the

@@ -8,12 +8,12 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import trimesh  # noqa: E402
-from mpl_toolkits.mplot3d.art3d import Poly3DCollection  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+import trimesh
+from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
-from pour_gym.parts import PART_COLORS, Part  # noqa: E402
+from pour_gym.parts import PART_COLORS, Part
 
 _BASE_COLOR = np.array([0.62, 0.70, 0.80])
 _LIGHT = np.array([0.4, -0.6, 0.7]) / np.linalg.norm([0.4, -0.6, 0.7])
@@ -27,7 +27,9 @@ def _face_colors(mesh: trimesh.Trimesh, labels: np.ndarray | None) -> np.ndarray
         palette = np.array([PART_COLORS[p] for p in Part])
         face_labels = np.asarray(labels)[mesh.faces]
         # A face takes the label most of its vertices carry (the first on a three-way tie).
-        major = np.where(face_labels[:, 1] == face_labels[:, 2], face_labels[:, 1], face_labels[:, 0])
+        major = np.where(
+            face_labels[:, 1] == face_labels[:, 2], face_labels[:, 1], face_labels[:, 0]
+        )
         base = palette[major]
     shade = 0.35 + 0.65 * np.abs(mesh.face_normals @ _LIGHT)
     return np.clip(base * shade[:, None], 0.0, 1.0)
@@ -103,6 +105,53 @@ def render_mesh(
         fig.suptitle(title)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def render_gallery(
+    meshes: Sequence[tuple[str, trimesh.Trimesh, np.ndarray | None]],
+    path: str | Path,
+    columns: int = 3,
+    view: tuple[float, float] = (30.0, -60.0),
+) -> Path:
+    """Write a PNG grid of labelled meshes drawn at one common scale.
+
+    Args:
+        meshes: (title, mesh, per-vertex labels or None) per panel.
+        path: output PNG file.
+        columns: panels per row.
+        view: (elevation, azimuth) in degrees.
+
+    Returns:
+        The path written.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    rows = int(np.ceil(len(meshes) / columns))
+    fig = plt.figure(figsize=(3.6 * columns, 3.6 * rows))
+    half = max(float(np.ptp(m.vertices, axis=0).max()) for _, m, _ in meshes) / 2.0
+    for i, (title, mesh, labels) in enumerate(meshes):
+        ax = fig.add_subplot(rows, columns, i + 1, projection="3d")
+        tris = np.asarray(mesh.vertices)[np.asarray(mesh.faces)]
+        ax.add_collection3d(
+            Poly3DCollection(tris, facecolors=_face_colors(mesh, labels), edgecolors="none")
+        )
+        lo, hi = mesh.bounds
+        centre = (lo + hi) / 2.0
+        for set_lim, c in zip((ax.set_xlim, ax.set_ylim, ax.set_zlim), centre, strict=True):
+            set_lim(c - half, c + half)
+        ax.set_box_aspect((1, 1, 1))
+        ax.view_init(elev=view[0], azim=view[1])
+        ax.set_axis_off()
+        ax.set_title(title, fontsize=10)
+    handles = [
+        plt.Line2D([], [], marker="s", ls="", color=PART_COLORS[p], label=p.name.lower())
+        for p in Part
+    ]
+    fig.legend(handles=handles, loc="lower center", ncol=len(handles), frameon=False)
+    fig.tight_layout(rect=(0, 0.04, 1, 1))
+    fig.savefig(path, dpi=90)
     plt.close(fig)
     return path
 

@@ -43,11 +43,25 @@ def test_scan_then_reconstruct_a_user_cloud(tmp_path, models):
     cloud.points *= 1000.0
     cloud.normals = None
     src = save_point_cloud(cloud, tmp_path / "cup_mm.xyz")
-    proc = run("reconstruct", "--points", str(src), "--out", str(tmp_path / "cup.obj"), "--json", check=False)
+    proc = run(
+        "reconstruct",
+        "--points",
+        str(src),
+        "--out",
+        str(tmp_path / "cup.obj"),
+        "--json",
+        check=False,
+    )
     assert proc.returncode == 2 and "millimetres" in proc.stderr and proc.stdout == ""
     proc = run(
-        "reconstruct", "--points", str(src), "--scale", "0.001",
-        "--out", str(tmp_path / "cup.obj"), "--json",
+        "reconstruct",
+        "--points",
+        str(src),
+        "--scale",
+        "0.001",
+        "--out",
+        str(tmp_path / "cup.obj"),
+        "--json",
     )
     doc = json.loads(proc.stdout)  # the whole of stdout is one JSON document
     assert doc["n_points"] == len(cloud.points)

@@ -74,7 +74,9 @@ def test_bad_meshes(tmp_path):
     validate_mesh(box, watertight=True)
     with pytest.raises(InputError, match="millimetres"):
         validate_mesh(trimesh.creation.box([50.0, 50.0, 50.0]))
-    flat = trimesh.Trimesh([[0, 0, 0], [0.1, 0, 0], [0.2, 0, 0], [0.3, 0, 0]], [[0, 1, 2], [1, 2, 3]])
+    flat = trimesh.Trimesh(
+        [[0, 0, 0], [0.1, 0, 0], [0.2, 0, 0], [0.3, 0, 0]], [[0, 1, 2], [1, 2, 3]]
+    )
     with pytest.raises(InputError, match="degenerate"):
         validate_mesh(flat)
     open_box = box.copy()

@@ -9,8 +9,18 @@ from pour_gym.assets import real_mesh_path
 
 def test_wheel_contents(tmp_path):
     subprocess.run(
-        [sys.executable, "-m", "pip", "wheel", ".", "--no-deps", "--no-build-isolation",
-         "-q", "-w", str(tmp_path)],
+        [
+            sys.executable,
+            "-m",
+            "pip",
+            "wheel",
+            ".",
+            "--no-deps",
+            "--no-build-isolation",
+            "-q",
+            "-w",
+            str(tmp_path),
+        ],
         check=True,
         capture_output=True,
     )
@@ -29,7 +39,7 @@ def test_wheel_contents(tmp_path):
 
 
 def test_packaged_meshes_resolve():
-    import pour_gym.agents  # noqa: F401
+    import pour_gym.agents
     import pour_gym.envs
 
     assert isinstance(pour_gym.envs.ENV_IDS, tuple)

@@ -30,7 +30,9 @@ def test_noise_is_gaussian_along_the_ray(models):
     cup = models["red_cup"]
     cfg = ScanConfig(noise=0.0, views=4, elevations_deg=(5.0,))
     clean = turntable_scan(cup.mesh, cup.labels, cfg).points
-    noisy = turntable_scan(cup.mesh, cup.labels, ScanConfig(noise=0.001, views=4, elevations_deg=(5.0,))).points
+    noisy = turntable_scan(
+        cup.mesh, cup.labels, ScanConfig(noise=0.001, views=4, elevations_deg=(5.0,))
+    ).points
     assert clean.shape == noisy.shape
     assert np.std(np.linalg.norm(noisy - clean, axis=1)) == pytest.approx(0.001 * 0.6, rel=0.25)
     assert np.median(np.linalg.norm(noisy - clean, axis=1)) == pytest.approx(0.001 * 0.674, rel=0.1)

@@ -290,10 +290,17 @@ def _handle(spec: ObjectSpec, outer: np.ndarray) -> trimesh.Trimesh:
     phi = np.linspace(0.5 * np.pi, -0.5 * np.pi, 41)
     w = (np.sin(phi) + 1.0) / 2.0
     bow = np.column_stack(
-        [w * p1[0] + (1 - w) * p2[0] + HANDLE_REACH * np.cos(phi), (hi + lo) / 2 + (hi - lo) / 2 * np.sin(phi)]
+        [
+            w * p1[0] + (1 - w) * p2[0] + HANDLE_REACH * np.cos(phi),
+            (hi + lo) / 2 + (hi - lo) / 2 * np.sin(phi),
+        ]
     )
     path2d = np.concatenate(
-        [_segment(tuple(start), tuple(p1), 0.003)[:-1], bow, _segment(tuple(p2), tuple(end), 0.003)[1:]]
+        [
+            _segment(tuple(start), tuple(p1), 0.003)[:-1],
+            bow,
+            _segment(tuple(p2), tuple(end), 0.003)[1:],
+        ]
     )
     path = np.column_stack([path2d[:, 0], np.zeros(len(path2d)), path2d[:, 1]])
     tangent = np.gradient(path, axis=0)
