@@ -64,16 +64,34 @@ def top_band_rim(
         and the mean of the wedges' top heights, all in m.
     """
     v = np.asarray(vertices, dtype=float)
+    mask, top = rim_band_mask(v, band, sectors)
+    rim = v[mask]
+    centre = rim.mean(axis=0)
+    radius = float(np.linalg.norm(rim - centre, axis=1).mean())
+    return centre, radius, top
+
+
+def rim_band_mask(
+    vertices: np.ndarray, band: float = 0.002, sectors: int = 36
+) -> tuple[np.ndarray, float]:
+    """Which vertices form the rim band of :func:`top_band_rim`, and the mean wedge top.
+
+    Args:
+        vertices: (V, 3) positions in m, z up.
+        band: thickness of the band below each wedge's top, in m.
+        sectors: number of wedges about the axis through the top tenth's centre.
+
+    Returns:
+        A boolean mask over the vertices and the mean of the wedges' top heights in m.
+    """
+    v = np.asarray(vertices, dtype=float)
     upper = v[v[:, 2] >= np.percentile(v[:, 2], 90)]
     axis = upper[:, :2].mean(axis=0)
     azimuth = np.arctan2(v[:, 1] - axis[1], v[:, 0] - axis[0])
     wedge = np.minimum(((azimuth + np.pi) / (2 * np.pi) * sectors).astype(int), sectors - 1)
     top = np.full(sectors, -np.inf)
     np.maximum.at(top, wedge, v[:, 2])
-    rim = v[v[:, 2] >= top[wedge] - band]
-    centre = rim.mean(axis=0)
-    radius = float(np.linalg.norm(rim - centre, axis=1).mean())
-    return centre, radius, float(top[np.isfinite(top)].mean())
+    return v[:, 2] >= top[wedge] - band, float(top[np.isfinite(top)].mean())
 
 
 def occupancy_grid(
@@ -145,6 +163,36 @@ def occupancy_grid(
     return occupied, origin
 
 
+def shell_occupancy(
+    mesh: trimesh.Trimesh, voxel: float, pad: int = 2
+) -> tuple[np.ndarray, np.ndarray]:
+    """Voxelise a surface that may have holes: the voxels its surface passes through.
+
+    Points are drawn on the surface at a spacing well below the voxel, their voxels are
+    marked and the marks dilated by one voxel, which closes holes up to about two voxels
+    wide. Empty space the shell encloses completely (the inside of a closed wall) is filled.
+
+    Args:
+        mesh: any triangle mesh, in m.
+        voxel: voxel edge, in m.
+        pad: empty voxels added on every side.
+
+    Returns:
+        ``(occupied, origin)`` as :func:`occupancy_grid`.
+    """
+    lo, hi = mesh.bounds
+    origin = lo - pad * voxel
+    shape = np.ceil((hi - lo) / voxel).astype(int) + 2 * pad + 1
+    count = int(np.ceil(mesh.area / (0.4 * voxel) ** 2))
+    points, _ = trimesh.sample.sample_surface_even(mesh, count, seed=0)
+    points = np.concatenate([points, mesh.vertices])
+    idx = np.clip(np.round((points - origin) / voxel).astype(int), 0, shape - 1)
+    occupied = np.zeros(shape, dtype=bool)
+    occupied[idx[:, 0], idx[:, 1], idx[:, 2]] = True
+    # Empty space enclosed by the shell is the inside of a closed wall, not a cavity.
+    return ndimage.binary_fill_holes(ndimage.binary_dilation(occupied)), origin
+
+
 def _holds_water(empty: np.ndarray, seed: tuple[int, int, int], level: int) -> tuple[bool, int]:
     """Whether the seed's empty region below ``level`` is enclosed, and its voxel count."""
     region = empty[:, :, :level]
@@ -199,17 +247,20 @@ def holding_volume_from_grid(occupied: np.ndarray, voxel: float, seed_xy: tuple[
     return count * voxel**3
 
 
-def holding_volume(mesh: trimesh.Trimesh, voxel: float = 5e-4) -> float:
-    """How much water an upright closed mesh holds before it overflows, in m^3.
+def holding_volume(mesh: trimesh.Trimesh, voxel: float = 5e-4, closed: bool = True) -> float:
+    """How much water an upright mesh holds before it overflows, in m^3.
 
     Args:
-        mesh: a watertight mesh, upright (z up), in m.
+        mesh: the container, upright (z up), in m.
         voxel: voxel edge in m; the result is within about one voxel layer of water.
+        closed: the mesh is watertight and its solid is voxelised by ray parity; with
+            ``False`` its surface is voxelised as a thin shell instead (for scans with
+            holes), which holds slightly less than the real cavity.
 
     Returns:
         The holding volume in m^3.
     """
-    occupied, origin = occupancy_grid(mesh, voxel)
+    occupied, origin = (occupancy_grid if closed else shell_occupancy)(mesh, voxel)
     centre, _, _ = top_band_rim(mesh.vertices)
     ij = np.round((centre[:2] - origin[:2]) / voxel).astype(int)
     return holding_volume_from_grid(occupied, voxel, (int(ij[0]), int(ij[1])))
