@@ -1,20 +1,48 @@
-"""Where packaged asset files live: one place that resolves their paths.
+"""Labelled assets: the asset format, labelling a container into one, and the catalogue.
 
-The top-level ``assets/`` folder of the repository is installed as the package
-``pour_gym.asset_files``, so the same code finds it in a checkout and after ``pip install``.
+An asset directory holds (the contract other tools read):
+
+- ``mesh.obj``: the target's own vertices, in the input's order (no merging or
+  reordering), moved into the canonical frame: upright, base on z = 0, rim axis on the z
+  axis, handle along +x;
+- ``labels.npy``: one int8 part per vertex (see :class:`pour_gym.parts.Part`);
+- ``meta.json``: ``labels`` (the part names' values), ``rim_center``, ``rim_radius``,
+  ``height``, ``lip_point``, ``container_volume`` (convex hull, thesis 5.1) and
+  ``cavity_volume`` in m and m^3, ``transform`` (input -> asset frame, 4 x 4), ``source``
+  (what it was warped from and how) and, for catalogue targets, ``iou`` per part and the
+  thesis's table rows;
+- ``labels.png``: a picture of the labelled mesh.
+
+The repository's top-level ``assets/`` folder is installed as the package
+``pour_gym.asset_files``; :func:`asset_root` finds it in a checkout and after
+``pip install``. ``pour-gym build-assets`` rebuilds every catalogue asset there.
 """
 
 from __future__ import annotations
 
+import json
+import time
+from dataclasses import dataclass
 from importlib.resources import files
 from pathlib import Path
 
+import numpy as np
+import trimesh
+
 from pour_gym.errors import InputError
+from pour_gym.features import ContainerGeometry, container_geometry
+from pour_gym.fileio import load_mesh, validate_mesh
+from pour_gym.objects import OBJECT_NAMES, ContainerModel, build_object
+from pour_gym.parts import PART_NAMES, Part
+from pour_gym.warp.frame import canonical_frame
+from pour_gym.warp.transfer import transfer_best, transfer_thesis
 
 REAL_MESHES: dict[str, str] = {
     "ycb_mug": "ycb/025_mug.obj",
     "ycb_bowl": "ycb/024_bowl.obj",
 }
+PYBULLET_MUG = "pybullet_mug"
+CATALOGUE: tuple[str, ...] = (*OBJECT_NAMES, PYBULLET_MUG, *REAL_MESHES)
 
 
 def asset_root() -> Path:
@@ -23,20 +51,227 @@ def asset_root() -> Path:
 
 
 def real_mesh_path(name: str) -> Path:
-    """Path of a packaged real scanned mesh.
+    """Path of a packaged real scanned mesh or of the mug that ships with pybullet_data.
 
     Args:
-        name: one of :data:`REAL_MESHES` (``ycb_mug``, ``ycb_bowl``).
+        name: ``ycb_mug``, ``ycb_bowl`` or ``pybullet_mug``.
 
     Returns:
-        The mesh file (metres, z up, centred on its bounding box; not watertight).
+        The mesh file (metres, z up, not watertight).
 
     Raises:
         InputError: unknown name.
     """
+    if name == PYBULLET_MUG:
+        import pybullet_data
+
+        return Path(pybullet_data.getDataPath()) / "objects" / "mug.obj"
     try:
         return asset_root() / REAL_MESHES[name]
     except KeyError:
         raise InputError(
-            f"unknown real mesh {name!r}; packaged ones: {', '.join(REAL_MESHES)}"
+            f"unknown real mesh {name!r}; known: {', '.join([PYBULLET_MUG, *REAL_MESHES])}"
         ) from None
+
+
+def resolve_target(target: str | Path | trimesh.Trimesh, scale: float = 1.0):
+    """A labelling target as (name, mesh, ground-truth model or None).
+
+    Args:
+        target: a catalogue name, a mesh file, or a mesh.
+        scale: factor to metres for mesh files.
+
+    Raises:
+        InputError: neither a catalogue name nor a readable mesh.
+    """
+    if isinstance(target, trimesh.Trimesh):
+        return "mesh", target, None
+    name = str(target)
+    if name in OBJECT_NAMES:
+        model = build_object(name)
+        return name, model.mesh, model
+    if name in (PYBULLET_MUG, *REAL_MESHES):
+        return name, load_mesh(real_mesh_path(name)), None
+    path = Path(name)
+    if path.exists() or path.suffix:
+        return path.stem, load_mesh(path, scale), None
+    raise InputError(
+        f"{name!r} is neither a catalogue container ({', '.join(CATALOGUE)}) nor a mesh file"
+    )
+
+
+@dataclass
+class LabelledAsset:
+    """A labelled container in its canonical frame.
+
+    Attributes:
+        name: the asset's name.
+        mesh: the mesh in the canonical frame, vertices in the input's order.
+        labels: (V,) int8 part per vertex.
+        geometry: container geometry from the labels.
+        meta: everything ``meta.json`` holds.
+    """
+
+    name: str
+    mesh: trimesh.Trimesh
+    labels: np.ndarray
+    geometry: ContainerGeometry
+    meta: dict
+
+
+def part_iou(predicted: np.ndarray, truth: np.ndarray) -> dict[str, float | None]:
+    """Intersection over union of each part's vertex set (None where neither has the part)."""
+    out: dict[str, float | None] = {}
+    for part in Part:
+        a, b = predicted == part, truth == part
+        union = int(np.count_nonzero(a | b))
+        out[part.name.lower()] = None if union == 0 else float(np.count_nonzero(a & b) / union)
+    return out
+
+
+def _table_rows(model: ContainerModel, geometry: ContainerGeometry) -> dict:
+    """The thesis's Tables 4.1-4.3 rows for one object: real, computed here, paper."""
+    spec = model.spec
+    rows = {}
+    for key, real, computed, paper in (
+        ("height", spec.height, geometry.height, spec.thesis_height),
+        ("rim_radius", spec.rim_radius, geometry.rim_radius, spec.thesis_rim_radius),
+        ("volume", spec.volume, geometry.cavity_volume, spec.thesis_volume),
+        ("volume_convex_hull", spec.volume, geometry.container_volume, spec.thesis_volume),
+    ):
+        rows[key] = {
+            "real": real,
+            "computed": computed,
+            "abs_error": abs(computed - real),
+            "rel_error": abs(computed - real) / real,
+            "thesis_computed": paper,
+            "thesis_rel_error": abs(paper - real) / real,
+        }
+    return rows
+
+
+def _source_model(source: str) -> ContainerModel:
+    if source not in OBJECT_NAMES:
+        raise InputError(
+            f"the source must be a labelled thesis object ({', '.join(OBJECT_NAMES)}); "
+            f"got {source!r}"
+        )
+    return build_object(source)
+
+
+def label_container(
+    target: str | Path | trimesh.Trimesh,
+    source: str = "red_cup",
+    method: str = "best",
+    scale: float = 1.0,
+) -> LabelledAsset:
+    """Label a container's parts by warping a labelled source onto it.
+
+    Args:
+        target: a catalogue name, a mesh file (any pose and size, in m after ``scale``),
+            or a mesh.
+        source: the labelled thesis object to warp from.
+        method: ``"best"`` or ``"thesis"`` (see :mod:`pour_gym.warp.transfer`).
+        scale: factor to metres for mesh files.
+
+    Returns:
+        The labelled asset, in its canonical frame.
+
+    Raises:
+        InputError: unknown names, a method other than the two, a degenerate or tiny mesh,
+            a mesh that holds no water.
+    """
+    if method not in ("best", "thesis"):
+        raise InputError(f"unknown method {method!r}; use 'best' or 'thesis'")
+    t0 = time.perf_counter()
+    name, mesh, truth = resolve_target(target, scale)
+    validate_mesh(mesh, name=name)
+    src = _source_model(source)
+    if method == "best":
+        result = transfer_best(src.mesh, src.labels, mesh)
+        frame = result.frame
+    else:
+        result = transfer_thesis(src.mesh, src.labels, mesh)
+        frame = canonical_frame(mesh)
+    assert frame is not None
+    placed = trimesh.Trimesh(frame.apply(np.asarray(mesh.vertices)), mesh.faces, process=False)
+    labels = result.labels.astype(np.int8)
+    geometry = container_geometry(placed, labels)
+    meta: dict = {
+        "name": name,
+        "labels": PART_NAMES,
+        **geometry.to_dict(),
+        "transform": frame.transform.tolist(),
+        "watertight": bool(mesh.is_watertight),
+        "vertices": len(mesh.vertices),
+        "source": {"object": source, "method": method, "transfer": result.info},
+        "seconds": time.perf_counter() - t0,
+    }
+    if truth is not None:
+        # The catalogue meshes are built upright with the handle along +x, so the
+        # canonical frame is the identity up to a shift: labels compare vertex by vertex.
+        meta["iou"] = part_iou(labels, truth.labels)
+        meta["tables"] = _table_rows(truth, geometry)
+    return LabelledAsset(name=name, mesh=placed, labels=labels, geometry=geometry, meta=meta)
+
+
+def write_asset(asset: LabelledAsset, out: str | Path, picture: bool = True) -> Path:
+    """Write an asset directory (``mesh.obj``, ``labels.npy``, ``meta.json``, ``labels.png``).
+
+    Args:
+        asset: the labelled asset.
+        out: the directory (created).
+        picture: also draw ``labels.png``.
+
+    Returns:
+        The directory.
+    """
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    # Fixed precision and no normals keep the files small and rebuilds byte-identical.
+    obj = trimesh.exchange.obj.export_obj(
+        asset.mesh, include_normals=False, include_texture=False, digits=7
+    )
+    (out / "mesh.obj").write_text(obj)
+    np.save(out / "labels.npy", asset.labels)
+    meta = {k: v for k, v in asset.meta.items() if k != "seconds"}
+    (out / "meta.json").write_text(json.dumps(meta, indent=2, sort_keys=True) + "\n")
+    if picture:
+        from pour_gym.render import render_mesh
+
+        render_mesh(asset.mesh, out / "labels.png", labels=asset.labels, title=asset.name)
+    return out
+
+
+def load_asset(name_or_dir: str | Path) -> LabelledAsset:
+    """Load a labelled asset by catalogue name (packaged) or from a directory.
+
+    Args:
+        name_or_dir: a name under :func:`asset_root` or a path to an asset directory.
+
+    Returns:
+        The asset; its geometry is recomputed from mesh and labels.
+
+    Raises:
+        InputError: no such asset, or files missing.
+    """
+    path = Path(name_or_dir)
+    if not path.is_dir():
+        path = asset_root() / str(name_or_dir)
+    files_needed = [path / f for f in ("mesh.obj", "labels.npy", "meta.json")]
+    missing = [f.name for f in files_needed if not f.is_file()]
+    if missing:
+        raise InputError(
+            f"no labelled asset at {path} (missing {', '.join(missing)}); known assets: "
+            f"{', '.join(CATALOGUE)}; build them with pour-gym build-assets"
+        )
+    mesh = load_mesh(path / "mesh.obj")
+    labels = np.load(path / "labels.npy")
+    meta = json.loads((path / "meta.json").read_text())
+    return LabelledAsset(
+        name=meta.get("name", path.name),
+        mesh=mesh,
+        labels=labels,
+        geometry=container_geometry(mesh, labels),
+        meta=meta,
+    )

@@ -214,12 +214,19 @@ def cmd_measure(args: argparse.Namespace) -> Output:
 
 
 def cmd_report(args: argparse.Namespace) -> Output:
-    """Tables beside the thesis's: reconstruction errors per object (Tables 4.1-4.3)."""
+    """Tables beside the thesis's: reconstruction (chapter 3) or warping (chapter 4)."""
     from tqdm import tqdm
 
     from pour_gym.modelgen import generate_model
     from pour_gym.objects import OBJECT_NAMES
 
+    if args.what == "warping":
+        from pour_gym.assets import label_container
+
+        warp = {}
+        for name in tqdm(OBJECT_NAMES, desc="label from red_cup", file=sys.stderr):
+            warp[name] = {m: label_container(name, "red_cup", m).meta for m in ("thesis", "best")}
+        return (warp, lambda: cmd_report_warping(warp))
     reports = {
         name: generate_model(name).report
         for name in tqdm(OBJECT_NAMES, desc="scan + reconstruct", file=sys.stderr)
@@ -258,6 +265,81 @@ def reconstruction_table(reports: dict[str, dict]) -> str:
     mean = sums / len(reports)
     lines.append("| **mean** | " + " | ".join(f"**{c:.1%}**" for c in mean) + " | |")
     return "\n".join(lines)
+
+
+def cmd_label(args: argparse.Namespace) -> Output:
+    """Label a container by warping a labelled source onto it; write the asset."""
+    from pour_gym.assets import label_container, write_asset
+
+    asset = label_container(args.target, args.source, args.method, args.scale)
+    out = write_asset(asset, args.out)
+    doc = dict(asset.meta, out=str(out))
+
+    def text() -> str:
+        lines = [f"labelled {asset.name} from {args.source} ({args.method}) into {out}"]
+        g = asset.geometry
+        lines.append(
+            f"  height {g.height * 100:.2f} cm, rim radius {g.rim_radius * 100:.2f} cm, "
+            f"cavity {g.cavity_volume * 1e6:.0f} ml (convex hull {g.container_volume * 1e6:.0f} ml)"
+        )
+        if "iou" in asset.meta:
+            iou = ", ".join(f"{k} {v:.3f}" for k, v in asset.meta["iou"].items() if v is not None)
+            lines.append(f"  IoU against ground truth: {iou}")
+        return "\n".join(lines)
+
+    return (doc, text)
+
+
+def cmd_build_assets(args: argparse.Namespace) -> Output:
+    """Label every catalogue container from the source and write the packaged assets."""
+    from tqdm import tqdm
+
+    from pour_gym.assets import CATALOGUE, asset_root, label_container, write_asset
+
+    root = Path(args.out) if args.out else asset_root()
+    done = {}
+    for name in tqdm(CATALOGUE, desc="build assets", file=sys.stderr):
+        asset = label_container(name, args.source, args.method)
+        done[name] = str(write_asset(asset, root / name))
+    return (done, lambda: f"wrote {len(done)} assets under {root}")
+
+
+def cmd_report_warping(reports: dict[str, dict]) -> str:
+    """Tables 4.1-4.3 and per-part IoU beside the thesis's numbers."""
+    out = []
+    for key, title, unit, factor in (
+        ("height", "Table 4.1: height", "cm", 100.0),
+        ("rim_radius", "Table 4.2: rim radius", "cm", 100.0),
+        ("volume", "Table 4.3: volume (cavity below the rim)", "ml", 1e6),
+    ):
+        out.append(f"### {title}\n")
+        out.append(
+            f"| object | real {unit} | thesis {unit} | thesis error | thesis method {unit} "
+            f"| error | best {unit} | error |"
+        )
+        out.append("|---|---:|---:|---:|---:|---:|---:|---:|")
+        errs = np.zeros(3)
+        for name, by_method in reports.items():
+            t = by_method["thesis"]["tables"][key]
+            b = by_method["best"]["tables"][key]
+            errs += [t["thesis_rel_error"], t["rel_error"], b["rel_error"]]
+            out.append(
+                f"| {name} | {t['real'] * factor:.2f} | {t['thesis_computed'] * factor:.2f} | "
+                f"{t['thesis_rel_error']:.1%} | {t['computed'] * factor:.2f} | "
+                f"{t['rel_error']:.1%} | {b['computed'] * factor:.2f} | {b['rel_error']:.1%} |"
+            )
+        m = errs / len(reports)
+        out.append(f"| **mean** | | | **{m[0]:.1%}** | | **{m[1]:.1%}** | | **{m[2]:.1%}** |\n")
+    out.append("### Per-part IoU against ground truth (thesis method / best)\n")
+    out.append("| object | rim | handle | container | outside |")
+    out.append("|---|---:|---:|---:|---:|")
+    for name, by_method in reports.items():
+        cells = []
+        for part in ("rim", "handle", "container", "outside"):
+            pair = (by_method["thesis"]["iou"][part], by_method["best"]["iou"][part])
+            cells.append(" / ".join("-" if v is None else f"{v:.2f}" for v in pair))
+        out.append(f"| {name} | " + " | ".join(cells) + " |")
+    return "\n".join(out)
 
 
 def cmd_bench(args: argparse.Namespace) -> Output:
@@ -323,7 +405,19 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--scale", type=float, default=1.0, help="mesh units to m")
 
     p = add("report", cmd_report, "tables beside the thesis's (scan + reconstruct all objects)")
-    p.add_argument("what", choices=["reconstruction"])
+    p.add_argument("what", choices=["reconstruction", "warping"])
+
+    p = add("label", cmd_label, "label a container's parts by warping a labelled source (ch. 4)")
+    p.add_argument("target", help="catalogue container or mesh file (any pose, any size in m)")
+    p.add_argument("--source", default="red_cup", help="labelled thesis object to warp from")
+    p.add_argument("--out", required=True, help="asset directory to write")
+    p.add_argument("--method", choices=["best", "thesis"], default="best")
+    p.add_argument("--scale", type=float, default=1.0, help="mesh units to m")
+
+    p = add("build-assets", cmd_build_assets, "label every catalogue container into assets/")
+    p.add_argument("--source", default="red_cup")
+    p.add_argument("--method", choices=["best", "thesis"], default="best")
+    p.add_argument("--out", help="folder (default: the packaged assets folder)")
 
     p = add("bench", cmd_bench, "benchmarks (medians of repeated runs)")
     p.add_argument("what", choices=["reconstruct"])
@@ -351,6 +445,9 @@ def main(argv: list[str] | None = None) -> int:
     except InputError as exc:
         print(f"pour-gym {args.command}: error: {exc}", file=sys.stderr)
         return 2
+    except BrokenPipeError:  # the reader (head, jq -e ...) closed the pipe: not an error
+        sys.stderr.close()
+        return 0
     return 0
 
 

@@ -91,7 +91,13 @@ def rim_band_mask(
     wedge = np.minimum(((azimuth + np.pi) / (2 * np.pi) * sectors).astype(int), sectors - 1)
     top = np.full(sectors, -np.inf)
     np.maximum.at(top, wedge, v[:, 2])
-    return v[:, 2] >= top[wedge] - band, float(top[np.isfinite(top)].mean())
+    # On a coarse mesh a wedge may hold no rim vertex at all; its top is then something
+    # lower (a handle), a dip against both neighbouring wedges, and it is left out.
+    dip = 0.1 * float(np.ptp(v[:, 2]))
+    neighbours = np.minimum(np.roll(top, 1), np.roll(top, -1))
+    valid = np.isfinite(top) & ~(top < neighbours - dip)
+    mask = valid[wedge] & (v[:, 2] >= top[wedge] - band)
+    return mask, float(top[valid].mean())
 
 
 def occupancy_grid(
@@ -180,12 +186,32 @@ def shell_occupancy(
     Returns:
         ``(occupied, origin)`` as :func:`occupancy_grid`.
     """
-    lo, hi = mesh.bounds
+    return shell_occupancy_from_points(surface_samples(mesh, 0.4 * voxel), voxel, pad)
+
+
+def surface_samples(mesh: trimesh.Trimesh, spacing: float, seed: int = 0) -> np.ndarray:
+    """Random points on the surface, about one per ``spacing``^2 of area, plus the vertices."""
+    count = int(np.ceil(mesh.area / spacing**2))
+    points, _ = trimesh.sample.sample_surface(mesh, count, seed=seed)
+    return np.concatenate([points, np.asarray(mesh.vertices)])
+
+
+def shell_occupancy_from_points(
+    points: np.ndarray, voxel: float, pad: int = 2
+) -> tuple[np.ndarray, np.ndarray]:
+    """Voxels touched by dense surface points, dilated once, enclosed space filled.
+
+    Args:
+        points: (N, 3) points on a surface, spaced well below ``voxel``, in m.
+        voxel: voxel edge, in m.
+        pad: empty voxels added on every side.
+
+    Returns:
+        ``(occupied, origin)`` as :func:`occupancy_grid`.
+    """
+    lo, hi = points.min(axis=0), points.max(axis=0)
     origin = lo - pad * voxel
     shape = np.ceil((hi - lo) / voxel).astype(int) + 2 * pad + 1
-    count = int(np.ceil(mesh.area / (0.4 * voxel) ** 2))
-    points, _ = trimesh.sample.sample_surface_even(mesh, count, seed=0)
-    points = np.concatenate([points, mesh.vertices])
     idx = np.clip(np.round((points - origin) / voxel).astype(int), 0, shape - 1)
     occupied = np.zeros(shape, dtype=bool)
     occupied[idx[:, 0], idx[:, 1], idx[:, 2]] = True
@@ -193,21 +219,56 @@ def shell_occupancy(
     return ndimage.binary_fill_holes(ndimage.binary_dilation(occupied)), origin
 
 
-def _holds_water(empty: np.ndarray, seed: tuple[int, int, int], level: int) -> tuple[bool, int]:
-    """Whether the seed's empty region below ``level`` is enclosed, and its voxel count."""
+def _holds_water(
+    empty: np.ndarray, seed: tuple[int, int, int], level: int
+) -> tuple[bool, np.ndarray | None]:
+    """Whether the seed's empty region below ``level`` is enclosed, and that region."""
     region = empty[:, :, :level]
     labels, _ = ndimage.label(region)
     own = labels[seed]
     if own == 0:
-        return False, 0
+        return False, None
     sides = (labels[0], labels[-1], labels[:, 0], labels[:, -1], labels[:, :, 0])
     if any(np.any(face == own) for face in sides):
-        return False, 0
-    return True, int(np.count_nonzero(labels == own))
+        return False, None
+    return True, labels == own
 
 
-def holding_volume_from_grid(occupied: np.ndarray, voxel: float, seed_xy: tuple[int, int]) -> float:
-    """Holding volume of a voxelised upright container.
+@dataclass
+class Cavity:
+    """The water a container holds, as voxels.
+
+    Attributes:
+        mask: boolean (nx, ny, nz) voxels of water, in the grid of the occupancy.
+        origin: centre of voxel (0, 0, 0), in m.
+        voxel: voxel edge, in m.
+        level: height of the water surface (top of the highest water layer), in m.
+    """
+
+    mask: np.ndarray
+    origin: np.ndarray
+    voxel: float
+    level: float
+
+    @property
+    def volume(self) -> float:
+        """Volume of the water, in m^3."""
+        return float(np.count_nonzero(self.mask)) * self.voxel**3
+
+    def contains(self, points: np.ndarray) -> np.ndarray:
+        """Whether each of the (N, 3) points lies in a water voxel (same frame as the grid)."""
+        idx = np.round((np.asarray(points) - self.origin) / self.voxel).astype(int)
+        inside = np.all((idx >= 0) & (idx < np.array(self.mask.shape)), axis=1)
+        out = np.zeros(len(idx), dtype=bool)
+        i = idx[inside]
+        out[inside] = self.mask[i[:, 0], i[:, 1], i[:, 2]]
+        return out
+
+
+def cavity_from_grid(
+    occupied: np.ndarray, origin: np.ndarray, voxel: float, seed_xy: tuple[int, int]
+) -> Cavity:
+    """The water an upright voxelised container holds.
 
     The water is seeded in the first empty voxel above the base in column ``seed_xy`` (the
     rim centre's column) and the level is raised, by bisection over voxel layers, to the
@@ -215,36 +276,76 @@ def holding_volume_from_grid(occupied: np.ndarray, voxel: float, seed_xy: tuple[
 
     Args:
         occupied: boolean (nx, ny, nz) solid voxels, z up.
+        origin: centre of voxel (0, 0, 0), in m.
         voxel: voxel edge in m.
         seed_xy: (i, j) column index through the opening.
 
     Returns:
-        The volume in m^3; 0 when the column has no floor or the region never closes.
+        The cavity; empty when the column has no floor or the region never closes.
     """
+    nothing = Cavity(np.zeros(occupied.shape, dtype=bool), origin, voxel, float(origin[2]))
     column = occupied[seed_xy[0], seed_xy[1]]
     solid = np.flatnonzero(column)
     if len(solid) == 0:
-        return 0.0
+        return nothing
     # The first empty voxel above the lowest solid run is the bottom of the cavity.
     k = solid[0]
     while k < len(column) and column[k]:
         k += 1
     if k >= len(column) - 1:
-        return 0.0
+        return nothing
     empty = ~occupied
     seed = (seed_xy[0], seed_xy[1], k)
     lo, hi = k + 1, occupied.shape[2]  # holds at lo (one layer of water), find the last
-    ok, count = _holds_water(empty, seed, lo)
+    ok, water = _holds_water(empty, seed, lo)
     if not ok:
-        return 0.0
+        return nothing
     while hi - lo > 1:
         mid = (lo + hi) // 2
-        holds, n = _holds_water(empty, seed, mid)
+        holds, region = _holds_water(empty, seed, mid)
         if holds:
-            lo, count = mid, n
+            lo, water = mid, region
         else:
             hi = mid
-    return count * voxel**3
+    mask = np.zeros(occupied.shape, dtype=bool)
+    mask[:, :, :lo] = water
+    return Cavity(mask, origin, voxel, float(origin[2] + (lo - 0.5) * voxel))
+
+
+def holding_volume_from_grid(occupied: np.ndarray, voxel: float, seed_xy: tuple[int, int]) -> float:
+    """Holding volume in m^3 of a voxelised upright container (see :func:`cavity_from_grid`)."""
+    return cavity_from_grid(occupied, np.zeros(3), voxel, seed_xy).volume
+
+
+def cavity(mesh: trimesh.Trimesh, voxel: float = 5e-4, closed: bool = True) -> Cavity:
+    """The water an upright mesh holds before it overflows, as voxels in the mesh's frame.
+
+    Args:
+        mesh: the container, upright (z up), in m.
+        voxel: voxel edge in m.
+        closed: voxelise the solid by ray parity (watertight meshes); with ``False`` the
+            surface is voxelised as a thin shell (for scans with holes).
+
+    Returns:
+        The cavity.
+    """
+    occupied, origin = (occupancy_grid if closed else shell_occupancy)(mesh, voxel)
+    centre, _, _ = top_band_rim(mesh.vertices)
+    ij = np.round((centre[:2] - origin[:2]) / voxel).astype(int)
+    ij = np.clip(ij, 0, np.array(occupied.shape[:2]) - 1)
+    return cavity_from_grid(occupied, origin, voxel, (int(ij[0]), int(ij[1])))
+
+
+def shell_holding_volume(points: np.ndarray, voxel: float) -> float:
+    """Holding volume in m^3 of an upright surface given as dense points on it."""
+    occupied, origin = shell_occupancy_from_points(points, voxel)
+    centre, _, _ = top_band_rim(points)
+    ij = np.clip(
+        np.round((centre[:2] - origin[:2]) / voxel).astype(int),
+        0,
+        np.array(occupied.shape[:2]) - 1,
+    )
+    return cavity_from_grid(occupied, origin, voxel, (int(ij[0]), int(ij[1]))).volume
 
 
 def holding_volume(mesh: trimesh.Trimesh, voxel: float = 5e-4, closed: bool = True) -> float:
@@ -260,10 +361,7 @@ def holding_volume(mesh: trimesh.Trimesh, voxel: float = 5e-4, closed: bool = Tr
     Returns:
         The holding volume in m^3.
     """
-    occupied, origin = (occupancy_grid if closed else shell_occupancy)(mesh, voxel)
-    centre, _, _ = top_band_rim(mesh.vertices)
-    ij = np.round((centre[:2] - origin[:2]) / voxel).astype(int)
-    return holding_volume_from_grid(occupied, voxel, (int(ij[0]), int(ij[1])))
+    return cavity(mesh, voxel, closed).volume
 
 
 def container_dimensions(mesh: trimesh.Trimesh, voxel: float = 5e-4) -> ContainerDimensions:

@@ -133,7 +133,7 @@ class GaussianGenerative:
 
     def _log_likelihood(self, z: np.ndarray, k: int) -> np.ndarray:
         d = z - self.mu[k]
-        sign, logdet = np.linalg.slogdet(self.cov[k])
+        _, logdet = np.linalg.slogdet(self.cov[k])
         maha = np.einsum("ij,ij->i", d @ np.linalg.inv(self.cov[k]), d)
         return -0.5 * (maha + logdet + z.shape[1] * np.log(2.0 * np.pi))
 

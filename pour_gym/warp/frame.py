@@ -2,8 +2,9 @@
 
 A user's mesh comes in any pose and size. The frame is found from the shape alone:
 
-1. Upright: of the six directions along the principal axes of the vertices, the one that
-   makes the mesh hold the most water (a flood fill of its voxelised surface) is up.
+1. Upright: of the directions along the principal axes of the vertices and their
+   bisectors, the one that makes the mesh hold the most water (a flood fill of its
+   voxelised surface) is up.
    The rim's plane, fitted to the top band, then refines the axis.
 2. Origin: the rim centre's vertical line is the z axis; the lowest vertex is at z = 0.
 3. Azimuth: a handle is a range of azimuths where the mesh reaches much farther from the
@@ -21,9 +22,10 @@ from dataclasses import dataclass
 
 import numpy as np
 import trimesh
+from scipy.spatial.transform import Rotation
 
 from pour_gym.errors import InputError
-from pour_gym.measure import holding_volume, rim_band_mask, top_band_rim
+from pour_gym.measure import rim_band_mask, shell_holding_volume, surface_samples, top_band_rim
 
 
 @dataclass(frozen=True)
@@ -36,6 +38,8 @@ class ContainerFrame:
         rim_radius: mean distance of the top band to the rim centre, in m.
         handle: whether a handle was found (then it points along +x).
         profile: (B, 2) body radius against height, (z, rho) in m, in the canonical frame.
+        rim_top: (W, 2) height of the rim's top against azimuth, (angle in rad, z in m);
+            a scanned rim is seldom level, and normalising by it keeps the rim band even.
     """
 
     transform: np.ndarray
@@ -43,6 +47,7 @@ class ContainerFrame:
     rim_radius: float
     handle: bool
     profile: np.ndarray
+    rim_top: np.ndarray
 
     def apply(self, points: np.ndarray) -> np.ndarray:
         """Points (N, 3) in the input's coordinates to the canonical frame."""
@@ -59,16 +64,21 @@ class ContainerFrame:
         walls of any flare line up at |(x, y)| = 1 and rims at z = 1.
         """
         rho = self._rho(points[:, 2])
-        return np.column_stack([points[:, 0] / rho, points[:, 1] / rho, points[:, 2] / self.height])
+        top = self._top(points)
+        return np.column_stack([points[:, 0] / rho, points[:, 1] / rho, points[:, 2] / top])
 
     def normalise_normals(self, points: np.ndarray, normals: np.ndarray) -> np.ndarray:
         """Unit normals at canonical-frame ``points`` under the normalising scale."""
         rho = self._rho(points[:, 2])
-        n = normals * np.column_stack([rho, rho, np.full(len(rho), self.height)])
+        n = normals * np.column_stack([rho, rho, self._top(points)])
         return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
 
     def _rho(self, z: np.ndarray) -> np.ndarray:
         return np.interp(z, self.profile[:, 0], self.profile[:, 1])
+
+    def _top(self, points: np.ndarray) -> np.ndarray:
+        az = np.arctan2(points[:, 1], points[:, 0])
+        return np.interp(az, self.rim_top[:, 0], self.rim_top[:, 1], period=2 * np.pi)
 
 
 def _rotation_to_z(direction: np.ndarray) -> np.ndarray:
@@ -82,9 +92,8 @@ def _rotz(angle: float) -> np.ndarray:
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
-def _held(vertices: np.ndarray, faces: np.ndarray, rotation: np.ndarray, voxel: float) -> float:
-    mesh = trimesh.Trimesh(vertices @ rotation.T, faces, process=False)
-    return holding_volume(mesh, voxel, closed=False)
+def _held(samples: np.ndarray, rotation: np.ndarray, voxel: float) -> float:
+    return shell_holding_volume(samples @ rotation.T, voxel)
 
 
 def find_up(mesh: trimesh.Trimesh) -> np.ndarray:
@@ -104,11 +113,20 @@ def find_up(mesh: trimesh.Trimesh) -> np.ndarray:
     _, _, axes = np.linalg.svd(centred, full_matrices=False)
     size = float(np.ptp(centred, axis=0).max())
     voxel = size / 40.0
+    # The surface is sampled once; each candidate orientation only rotates the samples.
+    samples = surface_samples(mesh, 0.4 * voxel) - v.mean(axis=0)
+    # The principal axes and their pairwise bisectors: no direction is more than about 35
+    # degrees from a candidate, which the rim-plane refinement below can close (a mug's
+    # handle can tilt its principal axes by 45 degrees from its own axis).
+    candidates = list(axes)
+    for i in range(3):
+        for j in range(i + 1, 3):
+            candidates += [(axes[i] + axes[j]) / np.sqrt(2), (axes[i] - axes[j]) / np.sqrt(2)]
     best, best_volume = None, 0.0
-    for axis in axes:
+    for axis in candidates:
         for sign in (1.0, -1.0):
             rot = _rotation_to_z(sign * axis)
-            volume = _held(centred, mesh.faces, rot, voxel)
+            volume = _held(samples, rot, voxel)
             if volume > best_volume:
                 best, best_volume = rot, volume
     if best is None:
@@ -118,7 +136,7 @@ def find_up(mesh: trimesh.Trimesh) -> np.ndarray:
         )
     # Refine: the rim's plane is level when the container stands upright. The band is
     # taken per azimuth wedge, so it is a whole loop even while the axis is still tilted.
-    for _ in range(3):
+    for _ in range(10):
         up = centred @ best.T
         mask, _ = rim_band_mask(up, band=0.03 * float(np.ptp(up[:, 2])))
         band = up[mask]
@@ -131,11 +149,26 @@ def find_up(mesh: trimesh.Trimesh) -> np.ndarray:
         # and only while they do not spill water.
         if normal[2] < np.cos(np.radians(45.0)):
             break
+        if normal[2] > np.cos(np.radians(0.05)):
+            break  # level
         candidate = _rotation_to_z(normal) @ best
-        volume = _held(centred, mesh.faces, candidate, voxel)
+        volume = _held(samples, candidate, voxel)
         if volume < 0.95 * best_volume:
             break
         best, best_volume = candidate, max(volume, best_volume)
+    # Polish by hill climbing on the held water: a rim band that caught part of a handle
+    # can settle a few degrees off, and an upright cup holds the most.
+    for step in (8.0, 4.0, 2.0, 1.0):
+        improved = True
+        while improved:
+            improved = False
+            for axis in ((1.0, 0.0, 0.0), (-1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, -1.0, 0.0)):
+                tilt = Rotation.from_rotvec(np.radians(step) * np.array(axis)).as_matrix()
+                candidate = tilt @ best
+                volume = _held(samples, candidate, voxel)
+                if volume > 1.005 * best_volume:
+                    best, best_volume, improved = candidate, volume, True
+                    break
     return best
 
 
@@ -191,6 +224,31 @@ def body_profile(points: np.ndarray, bins: int = 40, wedges: int = 36) -> np.nda
     return np.column_stack([(edges[:-1] + edges[1:]) / 2.0, rho])
 
 
+def rim_heights(points: np.ndarray, wedges: int = 36) -> np.ndarray:
+    """Height of the rim's top per azimuth wedge, smoothed over neighbouring wedges.
+
+    Args:
+        points: (N, 3) canonical-frame positions.
+        wedges: number of wedges.
+
+    Returns:
+        (wedges, 2) array of (azimuth of the wedge centre in rad, height in m).
+    """
+    az = np.arctan2(points[:, 1], points[:, 0])
+    wb = np.minimum(((az + np.pi) / (2 * np.pi) * wedges).astype(int), wedges - 1)
+    top = np.full(wedges, -np.inf)
+    np.maximum.at(top, wb, points[:, 2])
+    # A wedge without a rim vertex (coarse meshes) or with a dip takes its neighbours' mean.
+    good = np.isfinite(top)
+    low = top < np.median(top[good]) - 0.1 * float(np.ptp(points[:, 2]))
+    good &= ~low
+    idx = np.arange(wedges)
+    top = np.interp(idx, idx[good], top[good], period=wedges)
+    top = (np.roll(top, 1) + top + np.roll(top, -1)) / 3.0
+    centres = -np.pi + (idx + 0.5) * 2 * np.pi / wedges
+    return np.column_stack([centres, top])
+
+
 def canonical_frame(mesh: trimesh.Trimesh, upright: bool = False) -> ContainerFrame:
     """Find the canonical frame of a container mesh.
 
@@ -218,4 +276,5 @@ def canonical_frame(mesh: trimesh.Trimesh, upright: bool = False) -> ContainerFr
         rim_radius=radius,
         handle=azimuth is not None,
         profile=body_profile(placed @ spin.T),
+        rim_top=rim_heights(placed @ spin.T),
     )

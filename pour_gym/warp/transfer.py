@@ -161,6 +161,11 @@ def transfer_best(
     np.add.at(votes, (bwd_target, source_labels), 1.0)
     votes[np.arange(len(tp)), fwd] += 1.0
     labels = np.argmax(votes, axis=1).astype(np.int8)
+    if tf.handle:
+        # Whatever stands well clear of the body (by the frame's own body profile) is the
+        # handle, however its normals point: coarse meshes average them across the bend.
+        radial = np.hypot(tp[:, 0], tp[:, 1])
+        labels[(radial > 1.2) & (tp[:, 2] < 0.95)] = Part.HANDLE
     if smoothing_rounds:
         labels = _smooth_labels(target, labels, smoothing_rounds)
     return Transfer(
@@ -173,8 +178,11 @@ def transfer_best(
 
 @dataclass
 class InitialClassifier:
-    """The thesis's initial classification (4.1): rim by logistic regression, handle by
-    the generative classifier, both on local features, trained on the labelled source."""
+    """The thesis's initial classification (4.1).
+
+    Rim by logistic regression, handle by the generative classifier, both on local
+    features, trained on the labelled source.
+    """
 
     rim: LogisticRegression
     handle: GaussianGenerative | None

@@ -1,0 +1,224 @@
+"""High-level features of chapter 5.1, computed from a labelled mesh.
+
+Container geometry (in the mesh's own frame, upright):
+
+- rim centre: mean of the rim vertices; rim radius: their mean distance to it;
+- height: the rim centre above the lowest vertex;
+- lip point: the lowest rim vertex in the container's current pose;
+- container volume: the convex hull of the container (inner-surface) vertices, as in the
+  thesis, and, better, the cavity: the water the mesh holds below its rim (a flood fill).
+
+Features of fluid particles for a container in a pose ``(R, t)`` (world = R @ local + t),
+vectorised over particles:
+
+- f1 relative distance: horizontal distance of a particle to the rim centre / rim radius;
+- f2 relative height: height of a particle above the rim centre / height;
+- f3 fluid volume: fluid volume in the container / container volume;
+- f4 fluid volume above the lip: fluid volume in the container above the lip point /
+  container volume.
+
+Fluid volume comes either from the particle count (incompressible fluid: N times the volume
+per particle) or from the local density of thesis 5.2, ``rho(p) = sum_n [|p - p_n| <
+3 sigma] N(|p - p_n|; 0, sigma)`` and ``V = sum_p 1 / rho(p)``. On a resting fluid on a
+cubic lattice the two agree within 5 % when sigma is 0.75 times the particle spacing
+(tested); with larger sigma the density estimate overstates the volume, because particles
+near a free surface or a wall see fewer neighbours.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import trimesh
+from scipy.spatial import ConvexHull, QhullError, cKDTree
+
+from pour_gym.errors import InputError
+from pour_gym.measure import Cavity, cavity
+from pour_gym.parts import Part
+
+
+@dataclass
+class ContainerGeometry:
+    """Geometry of a labelled container in its own upright frame (m, m^3).
+
+    Attributes:
+        rim_center: (3,) mean of the rim vertices.
+        rim_radius: mean distance of the rim vertices to the rim centre.
+        height: rim centre above the lowest vertex.
+        lip_point: (3,) lowest rim vertex when upright.
+        container_volume: convex hull of the container vertices (thesis 5.1).
+        cavity_volume: water held below the rim (flood fill of the mesh).
+        rim_vertices: (R, 3) rim vertices, for the lip point in other poses.
+        cavity: the cavity voxels, for testing whether particles are inside.
+    """
+
+    rim_center: np.ndarray
+    rim_radius: float
+    height: float
+    lip_point: np.ndarray
+    container_volume: float
+    cavity_volume: float
+    rim_vertices: np.ndarray
+    cavity: Cavity
+
+    def to_dict(self) -> dict:
+        """The scalar geometry as a JSON-serialisable dict."""
+        return {
+            "rim_center": self.rim_center.tolist(),
+            "rim_radius": self.rim_radius,
+            "height": self.height,
+            "lip_point": self.lip_point.tolist(),
+            "container_volume": self.container_volume,
+            "cavity_volume": self.cavity_volume,
+        }
+
+
+def container_geometry(
+    mesh: trimesh.Trimesh, labels: np.ndarray, voxel: float = 7.5e-4
+) -> ContainerGeometry:
+    """Geometry of an upright labelled container.
+
+    Args:
+        mesh: the container, upright, in m (watertight or not).
+        labels: (V,) part of each vertex.
+        voxel: voxel edge for the cavity, in m.
+
+    Returns:
+        The geometry.
+
+    Raises:
+        InputError: labels of the wrong length, or no rim or container vertices.
+    """
+    v = np.asarray(mesh.vertices, dtype=float)
+    labels = np.asarray(labels)
+    if labels.shape != (len(v),):
+        raise InputError(f"{len(labels)} labels for {len(v)} vertices")
+    rim = v[labels == Part.RIM]
+    inner = v[labels == Part.CONTAINER]
+    if len(rim) < 3 or len(inner) < 4:
+        raise InputError(
+            "the labels have no rim or no container: label the mesh first (pour-gym label)"
+        )
+    centre = rim.mean(axis=0)
+    try:
+        hull = float(ConvexHull(inner).volume)
+    except QhullError:
+        hull = 0.0
+    water = cavity(mesh, voxel, closed=bool(mesh.is_watertight))
+    return ContainerGeometry(
+        rim_center=centre,
+        rim_radius=float(np.linalg.norm(rim - centre, axis=1).mean()),
+        height=float(centre[2] - v[:, 2].min()),
+        lip_point=rim[np.argmin(rim[:, 2])],
+        container_volume=hull,
+        cavity_volume=water.volume,
+        rim_vertices=rim,
+        cavity=water,
+    )
+
+
+def lip_point(geometry: ContainerGeometry, rotation: np.ndarray, translation: np.ndarray):
+    """The lowest rim vertex, in world coordinates, of the container in a pose.
+
+    Args:
+        geometry: the container's geometry.
+        rotation: (3, 3) rotation of the container (world = R @ local + t).
+        translation: (3,) position of the container's frame origin, in m.
+
+    Returns:
+        (3,) world position in m.
+    """
+    world = geometry.rim_vertices @ np.asarray(rotation).T + translation
+    return world[np.argmin(world[:, 2])]
+
+
+def inside_container(
+    geometry: ContainerGeometry, points: np.ndarray, rotation: np.ndarray, translation: np.ndarray
+) -> np.ndarray:
+    """Whether world points lie in the container's cavity (by its voxels, not a box)."""
+    local = (np.asarray(points) - translation) @ np.asarray(rotation)
+    return geometry.cavity.contains(local)
+
+
+def relative_distance_height(
+    geometry: ContainerGeometry, points: np.ndarray, rotation: np.ndarray, translation: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """f1 and f2 of each particle.
+
+    Args:
+        geometry: the container's geometry.
+        points: (N, 3) particle positions in the world, m.
+        rotation: (3, 3) container rotation.
+        translation: (3,) container position, m.
+
+    Returns:
+        ``(f1, f2)``, each (N,): horizontal distance to the rim centre over the rim radius,
+        and height above the rim centre over the container's height.
+    """
+    c = np.asarray(rotation) @ geometry.rim_center + translation
+    p = np.asarray(points, dtype=float)
+    f1 = np.hypot(p[:, 0] - c[0], p[:, 1] - c[1]) / geometry.rim_radius
+    f2 = (p[:, 2] - c[2]) / geometry.height
+    return f1, f2
+
+
+def count_volume(n_particles: int, particle_volume: float) -> float:
+    """Fluid volume of an incompressible particle fluid: count times volume per particle."""
+    return n_particles * particle_volume
+
+
+def density_volume(points: np.ndarray, sigma: float) -> float:
+    """Fluid volume from the local density of each particle (thesis 5.2), in m^3.
+
+    Args:
+        points: (N, 3) particle positions, m.
+        sigma: width of the Gaussian, m (0.75 times the particle spacing agrees with the
+            count on a resting fluid).
+
+    Returns:
+        ``sum_p 1 / rho(p)`` with ``rho(p)`` the Gaussian-weighted number density of the
+        particles within 3 sigma (the particle itself included).
+    """
+    p = np.asarray(points, dtype=float)
+    if len(p) == 0:
+        return 0.0
+    norm = 1.0 / ((2.0 * np.pi) ** 1.5 * sigma**3)
+    tree = cKDTree(p)
+    pairs = tree.sparse_distance_matrix(tree, 3.0 * sigma, output_type="coo_matrix")
+    weights = norm * np.exp(-(pairs.data**2) / (2.0 * sigma**2))
+    # sparse_distance_matrix leaves out zero distances, so each particle's own term is added.
+    rho = np.bincount(pairs.row, weights, minlength=len(p)) + norm
+    return float(np.sum(1.0 / rho))
+
+
+def fluid_features(
+    geometry: ContainerGeometry,
+    points: np.ndarray,
+    rotation: np.ndarray,
+    translation: np.ndarray,
+    particle_volume: float,
+    inside: np.ndarray | None = None,
+) -> tuple[float, float]:
+    """f3 and f4 of a particle fluid and a container in a pose (count-based volumes).
+
+    Args:
+        geometry: the container's geometry.
+        points: (N, 3) particle positions in the world, m.
+        rotation: (3, 3) container rotation.
+        translation: (3,) container position, m.
+        particle_volume: fluid volume per particle, m^3.
+        inside: which particles are in the container (from the fluid's bookkeeping);
+            computed from the cavity when not given.
+
+    Returns:
+        ``(f3, f4)``: fluid volume in the container, and the part of it above the lip
+        point, each over the container's cavity volume.
+    """
+    if inside is None:
+        inside = inside_container(geometry, points, rotation, translation)
+    lip_z = lip_point(geometry, rotation, translation)[2]
+    n_in = int(np.count_nonzero(inside))
+    n_above = int(np.count_nonzero(inside & (np.asarray(points)[:, 2] > lip_z)))
+    vc = geometry.cavity_volume
+    return count_volume(n_in, particle_volume) / vc, count_volume(n_above, particle_volume) / vc

@@ -1,0 +1,84 @@
+"""Labelled assets: the contract, the committed catalogue, determinism, real meshes."""
+
+import json
+
+import numpy as np
+import pytest
+import trimesh
+
+from pour_gym.assets import (
+    CATALOGUE,
+    asset_root,
+    label_container,
+    load_asset,
+    real_mesh_path,
+    write_asset,
+)
+from pour_gym.errors import InputError
+from pour_gym.parts import Part
+
+CONTRACT_KEYS = {
+    "labels",
+    "rim_center",
+    "rim_radius",
+    "height",
+    "lip_point",
+    "container_volume",
+    "source",
+}
+
+
+@pytest.mark.parametrize("name", CATALOGUE)
+def test_committed_assets_follow_the_contract(name):
+    folder = asset_root() / name
+    meta = json.loads((folder / "meta.json").read_text())
+    assert CONTRACT_KEYS <= set(meta)
+    assert meta["labels"] == {"outside": 0, "rim": 1, "handle": 2, "container": 3}
+    asset = load_asset(name)
+    assert asset.labels.dtype == np.int8 and len(asset.labels) == len(asset.mesh.vertices)
+    assert np.any(asset.labels == Part.RIM) and np.any(asset.labels == Part.CONTAINER)
+    # Canonical frame: on the table, rim centre on the z axis, rim on top.
+    v = asset.mesh.vertices
+    assert v[:, 2].min() == pytest.approx(0.0, abs=1e-6)
+    # The low-poly pybullet mug (446 vertices) has an uneven rim band: its centre is about
+    # 0.3 rim radii off the axis; the tessellated meshes are within 0.05.
+    assert np.hypot(*meta["rim_center"][:2]) < 0.35 * meta["rim_radius"]
+    assert meta["rim_center"][2] > 0.8 * v[:, 2].max()
+    assert 0.03 < meta["rim_radius"] < 0.1 and 0.04 < meta["height"] < 0.12
+    assert 50e-6 < meta["cavity_volume"] < 1.5e-3
+
+
+def test_real_meshes_keep_their_vertex_order():
+    for name in ("ycb_mug", "ycb_bowl", "pybullet_mug"):
+        raw = trimesh.load(real_mesh_path(name), force="mesh", process=False)
+        asset = load_asset(name)
+        assert len(asset.mesh.vertices) == len(raw.vertices)
+        transform = np.array(asset.meta["transform"])
+        moved = raw.vertices @ transform[:3, :3].T + transform[:3, 3]
+        assert np.allclose(moved, asset.mesh.vertices, atol=1e-6)
+    assert np.any(load_asset("ycb_mug").labels == Part.HANDLE)
+    assert not np.any(load_asset("ycb_bowl").labels == Part.HANDLE)
+
+
+def test_rebuilding_an_asset_is_byte_identical(tmp_path):
+    out = write_asset(label_container("high_cup"), tmp_path / "high_cup", picture=False)
+    for file in ("mesh.obj", "labels.npy", "meta.json"):
+        assert (out / file).read_bytes() == (asset_root() / "high_cup" / file).read_bytes(), file
+
+
+def test_a_user_mesh_file_in_millimetres(tmp_path, models):
+    cup = models["standard_cup"].mesh.copy()
+    cup.apply_scale(1000.0)
+    path = tmp_path / "my_cup.stl"
+    cup.export(path)
+    with pytest.raises(InputError, match="millimetres"):
+        label_container(path)
+    asset = label_container(path, scale=0.001)
+    assert asset.meta["height"] == pytest.approx(0.083, rel=0.03)
+    out = write_asset(asset, tmp_path / "asset")
+    assert (out / "labels.png").stat().st_size > 10000
+
+
+def test_unknown_asset_names_the_known_ones():
+    with pytest.raises(InputError, match="ycb_mug"):
+        load_asset("teapot")
