@@ -102,3 +102,81 @@ def reconstruct_table(rows: list[dict]) -> str:
             f"| {r['n_points']} | {r['seconds']:.2f} | {r['peak_mb']:.0f} | {r['import_mb']:.0f} |"
         )
     return "\n".join(lines)
+
+
+def _decimated(mesh, vertices: int):
+    """The mesh simplified (quadric decimation) to about ``vertices`` vertices."""
+    import trimesh
+
+    from pour_gym.open3d_loader import open3d
+
+    o3d = open3d()
+    m = o3d.geometry.TriangleMesh(
+        o3d.utility.Vector3dVector(np.asarray(mesh.vertices)),
+        o3d.utility.Vector3iVector(np.asarray(mesh.faces)),
+    )
+    m = m.simplify_quadric_decimation(target_number_of_triangles=2 * vertices)
+    return trimesh.Trimesh(np.asarray(m.vertices), np.asarray(m.triangles), process=True)
+
+
+def bench_label(sizes: list[int], repeats: int = 3) -> list[dict]:
+    """Time of labelling a target of each vertex count (broad cup, remeshed, any pose).
+
+    Two figures per size: the label transfer alone (frame search, correspondences,
+    smoothing) and the whole asset (transfer plus container geometry and cavity).
+
+    Args:
+        sizes: target vertex counts.
+        repeats: runs per size; medians are reported.
+
+    Returns:
+        One row per size: ``vertices``, ``transfer_s``, ``asset_s``.
+    """
+    import time
+
+    import trimesh
+    from scipy.spatial.transform import Rotation
+
+    from pour_gym.assets import label_container
+    from pour_gym.warp.transfer import transfer_best
+
+    source = build_object("red_cup")
+    dense = build_object("broad_cup").mesh
+    v, f = trimesh.remesh.subdivide(dense.vertices, dense.faces)
+    dense = trimesh.Trimesh(v, f, process=True)
+    rows = []
+    bar = tqdm(total=len(sizes) * repeats, desc="bench label", file=sys.stderr)
+    label_container(source.mesh.copy())  # warm-up: imports and caches
+    for n in sizes:
+        target = _decimated(dense, n)
+        pose = np.eye(4)
+        pose[:3, :3] = Rotation.from_euler("xyz", [40, 10, 70], degrees=True).as_matrix()
+        target.apply_transform(pose)
+        transfer, whole = [], []
+        for _ in range(repeats):
+            t = time.perf_counter()
+            transfer_best(source.mesh, source.labels, target)
+            transfer.append(time.perf_counter() - t)
+            t = time.perf_counter()
+            label_container(target)
+            whole.append(time.perf_counter() - t)
+            bar.update()
+        rows.append(
+            {
+                "vertices": len(target.vertices),
+                "transfer_s": statistics.median(transfer),
+                "asset_s": statistics.median(whole),
+            }
+        )
+    bar.close()
+    return rows
+
+
+def label_table(rows: list[dict]) -> str:
+    """Markdown table of :func:`bench_label` rows."""
+    lines = [
+        "| target vertices | label transfer s (median) | whole asset s (median) |",
+        "|---:|---:|---:|",
+    ]
+    lines += [f"| {r['vertices']} | {r['transfer_s']:.2f} | {r['asset_s']:.2f} |" for r in rows]
+    return "\n".join(lines)

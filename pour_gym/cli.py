@@ -311,6 +311,7 @@ def cmd_report_warping(reports: dict[str, dict]) -> str:
         ("height", "Table 4.1: height", "cm", 100.0),
         ("rim_radius", "Table 4.2: rim radius", "cm", 100.0),
         ("volume", "Table 4.3: volume (cavity below the rim)", "ml", 1e6),
+        ("volume_convex_hull", "Table 4.3: volume (convex hull, thesis 5.1)", "ml", 1e6),
     ):
         out.append(f"### {title}\n")
         out.append(
@@ -344,9 +345,13 @@ def cmd_report_warping(reports: dict[str, dict]) -> str:
 
 def cmd_bench(args: argparse.Namespace) -> Output:
     """Benchmarks."""
-    from pour_gym.bench import bench_reconstruct, reconstruct_table
+    from pour_gym.bench import bench_label, bench_reconstruct, label_table, reconstruct_table
 
-    sizes = [int(s) for s in args.sizes.split(",")]
+    if args.what == "label":
+        sizes = [int(s) for s in (args.sizes or "5000,10000,20000,40000").split(",")]
+        rows = bench_label(sizes, repeats=args.repeats)
+        return ({"label": rows}, lambda: label_table(rows))
+    sizes = [int(s) for s in (args.sizes or "5000,10000,25000,50000,100000").split(",")]
     rows = bench_reconstruct(sizes, repeats=args.repeats)
     return ({"reconstruct": rows}, lambda: reconstruct_table(rows))
 
@@ -420,8 +425,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", help="folder (default: the packaged assets folder)")
 
     p = add("bench", cmd_bench, "benchmarks (medians of repeated runs)")
-    p.add_argument("what", choices=["reconstruct"])
-    p.add_argument("--sizes", default="5000,10000,25000,50000,100000")
+    p.add_argument("what", choices=["reconstruct", "label"])
+    p.add_argument("--sizes", help="comma-separated sizes (points or target vertices)")
     p.add_argument("--repeats", type=int, default=3)
 
     p = add("demo", cmd_demo, "rebuild a thesis object from a scan; write mesh, PNG, JSON")
