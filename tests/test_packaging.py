@@ -36,6 +36,16 @@ def test_wheel_contents(tmp_path):
     ]:
         assert required in names, required
     assert not any(n.startswith(("envs/", "agents/", "assets/", "tests/")) for n in names)
+    # Every module of the source tree is in the wheel (a subpackage missing from the
+    # package list would install without error and fail on import).
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parent.parent
+    for source in (root / "pour_gym").rglob("*.py"):
+        assert source.relative_to(root).as_posix() in names, source
+    for name in ("red_cup", "ycb_mug", "pybullet_mug"):
+        for file in ("mesh.obj", "labels.npy", "meta.json"):
+            assert f"pour_gym/asset_files/{name}/{file}" in names
 
 
 def test_packaged_meshes_resolve():

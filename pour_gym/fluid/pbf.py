@@ -1,0 +1,407 @@
+"""Position-based fluids (Macklin and Mueller 2013), compiled with numba.
+
+Each substep: apply gravity and predict positions; find neighbours with a hashed cell list
+(arrays allocated once, refilled in place); iterate the density constraint
+``C_i = rho_i / rho_0 - 1`` (clamped to compression, so that a free surface has no
+artificial cohesion), with the paper's artificial pressure ``s_corr`` against clumping;
+project out of the containers' walls through their signed-distance fields, posed by the
+containers' current transforms; update velocities from the displacement, and smooth them
+with XSPH viscosity.
+
+Units are SI. With the default spacing of 5 mm a particle stands for 0.125 ml of water and
+a thesis cup holds 1-3 thousand of them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numba as nb
+import numpy as np
+
+from pour_gym.fluid.sdf import SignedDistanceField, sample_sdf
+
+GRAVITY = np.array([0.0, 0.0, -9.81])
+
+
+@dataclass(frozen=True)
+class PBFConfig:
+    """Parameters of the fluid.
+
+    Attributes:
+        spacing: rest distance between particles, in m; a particle's volume is spacing^3.
+        kernel_ratio: smoothing radius over spacing.
+        rest_density: in kg/m^3.
+        iterations: constraint iterations per substep.
+        substep: largest substep, in s (smaller ones are taken when particles move fast).
+        relaxation: epsilon of the constraint's denominator, relative to its value at rest.
+        scorr_k: artificial-pressure strength, relative to lambda at rest.
+        scorr_dq: distance of the artificial pressure's reference, over the smoothing radius.
+        xsph: XSPH viscosity coefficient.
+        max_travel: a substep moves no particle farther than this many particle radii.
+    """
+
+    spacing: float = 0.005
+    kernel_ratio: float = 2.0
+    rest_density: float = 1000.0
+    iterations: int = 4
+    substep: float = 1.0 / 240.0
+    relaxation: float = 0.01
+    scorr_k: float = 0.02
+    scorr_dq: float = 0.2
+    xsph: float = 0.01
+    max_travel: float = 0.8
+
+    @property
+    def radius(self) -> float:
+        """Collision radius of a particle (half the spacing), in m."""
+        return 0.5 * self.spacing
+
+    @property
+    def particle_volume(self) -> float:
+        """Fluid volume each particle stands for, in m^3."""
+        return self.spacing**3
+
+    def to_dict(self) -> dict:
+        """The parameters as a JSON-serialisable dict."""
+        return asdict(self)
+
+
+@nb.njit(cache=True)
+def _poly6(r2, h):
+    if r2 >= h * h:
+        return 0.0
+    d = h * h - r2
+    return 315.0 / (64.0 * np.pi * h**9) * d * d * d
+
+
+@nb.njit(cache=True)
+def _spiky_grad_scale(r, h):
+    """Magnitude factor g with grad W = g * (x_i - x_j) (negative: points inward)."""
+    if r >= h or r < 1e-12:
+        return 0.0
+    d = h - r
+    return -45.0 / (np.pi * h**6) * d * d / r
+
+
+@nb.njit(cache=True)
+def _hash(cx, cy, cz, size):
+    return ((cx * 73856093) ^ (cy * 19349663) ^ (cz * 83492791)) & (size - 1)
+
+
+@nb.njit(cache=True)
+def _build_neighbours(p, h, table, order, start, nbr, nbr_count):
+    """Hashed cell list of cell size h, then each particle's neighbours within h."""
+    n = p.shape[0]
+    size = table.shape[0]
+    start[:] = 0
+    for i in range(n):
+        k = _hash(
+            int(np.floor(p[i, 0] / h)), int(np.floor(p[i, 1] / h)), int(np.floor(p[i, 2] / h)), size
+        )
+        table[i] = k
+        start[k + 1] += 1
+    for k in range(size):
+        start[k + 1] += start[k]
+    fill = start[:-1].copy()
+    for i in range(n):
+        order[fill[table[i]]] = i
+        fill[table[i]] += 1
+    max_nbr = nbr.shape[1]
+    h2 = h * h
+    for i in nb.prange(n):
+        cx = int(np.floor(p[i, 0] / h))
+        cy = int(np.floor(p[i, 1] / h))
+        cz = int(np.floor(p[i, 2] / h))
+        c = 0
+        for dx in range(-1, 2):
+            for dy in range(-1, 2):
+                for dz in range(-1, 2):
+                    k = _hash(cx + dx, cy + dy, cz + dz, size)
+                    for s in range(start[k], start[k + 1]):
+                        j = order[s]
+                        if j == i:
+                            continue
+                        rx = p[i, 0] - p[j, 0]
+                        ry = p[i, 1] - p[j, 1]
+                        rz = p[i, 2] - p[j, 2]
+                        if rx * rx + ry * ry + rz * rz < h2 and c < max_nbr:
+                            # Hash collisions can list a cell twice: skip duplicates.
+                            dup = False
+                            for q in range(c):
+                                if nbr[i, q] == j:
+                                    dup = True
+                                    break
+                            if not dup:
+                                nbr[i, c] = j
+                                c += 1
+        nbr_count[i] = c
+
+
+@nb.njit(parallel=True, cache=True)
+def _solve_density(p, nbr, nbr_count, lam, delta, h, vol, eps, scorr_k, w_dq, iterations):
+    """Jacobi iterations of the clamped density constraint with artificial pressure."""
+    n = p.shape[0]
+    w0 = _poly6(0.0, h)
+    for _ in range(iterations):
+        for i in nb.prange(n):
+            rho = w0
+            gx = 0.0
+            gy = 0.0
+            gz = 0.0
+            sum2 = 0.0
+            for q in range(nbr_count[i]):
+                j = nbr[i, q]
+                rx = p[i, 0] - p[j, 0]
+                ry = p[i, 1] - p[j, 1]
+                rz = p[i, 2] - p[j, 2]
+                r2 = rx * rx + ry * ry + rz * rz
+                rho += _poly6(r2, h)
+                g = _spiky_grad_scale(np.sqrt(r2), h) * vol
+                gx += g * rx
+                gy += g * ry
+                gz += g * rz
+                sum2 += g * g * r2
+            c = rho * vol - 1.0
+            if c < 0.0:
+                c = 0.0  # no tension: a free surface is not pulled together
+            lam[i] = -c / (sum2 + gx * gx + gy * gy + gz * gz + eps)
+        for i in nb.prange(n):
+            dx = 0.0
+            dy = 0.0
+            dz = 0.0
+            for q in range(nbr_count[i]):
+                j = nbr[i, q]
+                rx = p[i, 0] - p[j, 0]
+                ry = p[i, 1] - p[j, 1]
+                rz = p[i, 2] - p[j, 2]
+                r2 = rx * rx + ry * ry + rz * rz
+                ratio = _poly6(r2, h) / w_dq
+                s = -scorr_k * ratio * ratio * ratio * ratio
+                g = _spiky_grad_scale(np.sqrt(r2), h) * vol * (lam[i] + lam[j] + s)
+                dx += g * rx
+                dy += g * ry
+                dz += g * rz
+            delta[i, 0] = dx
+            delta[i, 1] = dy
+            delta[i, 2] = dz
+        for i in nb.prange(n):
+            p[i, 0] += delta[i, 0]
+            p[i, 1] += delta[i, 1]
+            p[i, 2] += delta[i, 2]
+
+
+@nb.njit(parallel=True, cache=True)
+def _collide(p, x_prev, radius, values, origin, spacing, rot, trans, prev_rot, prev_trans):
+    """Push particles out of one container's material, in the container's frame.
+
+    The particle's start-of-substep position is taken into the container's previous pose,
+    its end into the current one: if the straight path between them crosses the middle of
+    the wall (the distance changes sign along it) the particle is put back on the side it
+    came from, so a fast particle cannot tunnel through a thin wall.
+    """
+    n = p.shape[0]
+    for i in nb.prange(n):
+        q = np.empty(3)
+        q0 = np.empty(3)
+        grad = np.empty(3)
+        for a in range(3):
+            q[a] = (
+                rot[0, a] * (p[i, 0] - trans[0])
+                + rot[1, a] * (p[i, 1] - trans[1])
+                + rot[2, a] * (p[i, 2] - trans[2])
+            )
+            q0[a] = (
+                prev_rot[0, a] * (x_prev[i, 0] - prev_trans[0])
+                + prev_rot[1, a] * (x_prev[i, 1] - prev_trans[1])
+                + prev_rot[2, a] * (x_prev[i, 2] - prev_trans[2])
+            )
+        d = sample_sdf(values, origin, spacing, q, grad)
+        if d >= radius:
+            continue
+        d0 = sample_sdf(values, origin, spacing, q0, np.empty(3))
+        if d0 > 0.0 and d < -0.25 * radius:
+            # Crossed into the wall from outside: march back along the path to the surface.
+            lo, hi = 0.0, 1.0
+            for _ in range(20):
+                mid = 0.5 * (lo + hi)
+                qm = q0 + mid * (q - q0)
+                if sample_sdf(values, origin, spacing, qm, np.empty(3)) > radius:
+                    lo = mid
+                else:
+                    hi = mid
+            for a in range(3):
+                q[a] = q0[a] + lo * (q[a] - q0[a])
+            d = sample_sdf(values, origin, spacing, q, grad)
+        if d < radius:
+            push = radius - d
+            for a in range(3):
+                q[a] += push * grad[a]
+        for a in range(3):
+            p[i, a] = rot[a, 0] * q[0] + rot[a, 1] * q[1] + rot[a, 2] * q[2] + trans[a]
+
+
+@nb.njit(parallel=True, cache=True)
+def _finish(x, v, p, nbr, nbr_count, h, dt, xsph):
+    """Velocities from the displacement, XSPH-smoothed; positions take the prediction."""
+    n = x.shape[0]
+    for i in nb.prange(n):
+        for a in range(3):
+            v[i, a] = (p[i, a] - x[i, a]) / dt
+    vn = v.copy()
+    w0 = _poly6(0.0, h)
+    for i in nb.prange(n):
+        sx = 0.0
+        sy = 0.0
+        sz = 0.0
+        for q in range(nbr_count[i]):
+            j = nbr[i, q]
+            rx = p[i, 0] - p[j, 0]
+            ry = p[i, 1] - p[j, 1]
+            rz = p[i, 2] - p[j, 2]
+            w = _poly6(rx * rx + ry * ry + rz * rz, h) / w0
+            sx += (vn[j, 0] - vn[i, 0]) * w
+            sy += (vn[j, 1] - vn[i, 1]) * w
+            sz += (vn[j, 2] - vn[i, 2]) * w
+        v[i, 0] = vn[i, 0] + xsph * sx
+        v[i, 1] = vn[i, 1] + xsph * sy
+        v[i, 2] = vn[i, 2] + xsph * sz
+    for i in nb.prange(n):
+        for a in range(3):
+            x[i, a] = p[i, a]
+
+
+@dataclass
+class Collider:
+    """A container the fluid collides with: its field and its pose (world = R q + t)."""
+
+    sdf: SignedDistanceField
+    rotation: np.ndarray
+    translation: np.ndarray
+    prev_rotation: np.ndarray | None = None
+    prev_translation: np.ndarray | None = None
+
+
+class PBFluid:
+    """A position-based fluid colliding with posed containers.
+
+    Args:
+        positions: (N, 3) initial particle positions, m.
+        config: fluid parameters.
+        max_neighbours: neighbour slots per particle.
+    """
+
+    def __init__(self, positions: np.ndarray, config: PBFConfig | None = None, max_neighbours=64):
+        self.config = cfg = config or PBFConfig()
+        self.x = np.ascontiguousarray(positions, dtype=np.float64).copy()
+        n = len(self.x)
+        self.v = np.zeros_like(self.x)
+        self._p = np.empty_like(self.x)
+        self._prev = np.empty_like(self.x)
+        size = 1 << int(np.ceil(np.log2(max(2 * n, 16))))
+        self._table = np.empty(n, dtype=np.int64)
+        self._order = np.empty(n, dtype=np.int64)
+        self._start = np.zeros(size + 1, dtype=np.int64)
+        self._nbr = np.empty((n, max_neighbours), dtype=np.int64)
+        self._nbr_count = np.zeros(n, dtype=np.int64)
+        self._lam = np.zeros(n)
+        self._delta = np.zeros((n, 3))
+        self.colliders: list[Collider] = []
+        self.h = cfg.kernel_ratio * cfg.spacing
+        self._vol = cfg.spacing**3  # m / rho_0
+        # Scales at rest, from a full lattice neighbourhood: epsilon and s_corr relative
+        # to them keep the parameters meaningful in SI units.
+        g = np.arange(-3, 4) * cfg.spacing
+        lattice = np.stack(np.meshgrid(g, g, g), -1).reshape(-1, 3)
+        r = np.linalg.norm(lattice, axis=1)
+        near = (r > 0) & (r < self.h)
+        gs = np.array([_spiky_grad_scale(x, self.h) for x in r[near]]) * self._vol
+        rest_sum = float(np.sum(gs**2 * r[near] ** 2))
+        self._eps = cfg.relaxation * rest_sum
+        self._scorr = cfg.scorr_k / rest_sum
+        self._w_dq = _poly6((cfg.scorr_dq * self.h) ** 2, self.h)
+        self.time = 0.0
+
+    def add_collider(self, sdf: SignedDistanceField, rotation=None, translation=None) -> Collider:
+        """Add a container's field at a pose; returns the collider, whose pose can be set."""
+        c = Collider(
+            sdf,
+            np.eye(3) if rotation is None else np.asarray(rotation, dtype=np.float64),
+            np.zeros(3) if translation is None else np.asarray(translation, dtype=np.float64),
+        )
+        self.colliders.append(c)
+        return c
+
+    def step(self, dt: float) -> int:
+        """Advance by ``dt`` seconds; returns the number of substeps taken.
+
+        Colliders move linearly in position and rotation from their previous pose (at the
+        last call) to their current one over the step.
+
+        Raises:
+            FloatingPointError: a particle position became NaN or infinite.
+        """
+        cfg = self.config
+        speed = float(np.sqrt((self.v**2).sum(axis=1).max())) if len(self.v) else 0.0
+        limit = cfg.max_travel * cfg.radius
+        n_sub = max(int(np.ceil(dt / cfg.substep)), int(np.ceil(speed * dt / limit)), 1)
+        h_sub = dt / n_sub
+        for c in self.colliders:
+            if c.prev_rotation is None:
+                c.prev_rotation, c.prev_translation = c.rotation.copy(), c.translation.copy()
+        starts = [(c.prev_rotation, c.prev_translation) for c in self.colliders]
+        for s in range(n_sub):
+            self.v += GRAVITY * h_sub
+            self._prev[:] = self.x
+            self._p[:] = self.x + self.v * h_sub
+            _build_neighbours(
+                self._p, self.h, self._table, self._order, self._start, self._nbr, self._nbr_count
+            )
+            _solve_density(
+                self._p,
+                self._nbr,
+                self._nbr_count,
+                self._lam,
+                self._delta,
+                self.h,
+                self._vol,
+                self._eps,
+                self._scorr,
+                self._w_dq,
+                cfg.iterations,
+            )
+            f0, f1 = s / n_sub, (s + 1) / n_sub
+            for c, (r0, t0) in zip(self.colliders, starts, strict=True):
+                ra, ta = _interpolate(r0, t0, c.rotation, c.translation, f0)
+                rb, tb = _interpolate(r0, t0, c.rotation, c.translation, f1)
+                _collide(
+                    self._p,
+                    self._prev,
+                    cfg.radius,
+                    c.sdf.values,
+                    c.sdf.origin,
+                    c.sdf.spacing,
+                    rb,
+                    tb,
+                    ra,
+                    ta,
+                )
+            _finish(self.x, self.v, self._p, self._nbr, self._nbr_count, self.h, h_sub, cfg.xsph)
+        for c in self.colliders:
+            c.prev_rotation, c.prev_translation = c.rotation.copy(), c.translation.copy()
+        if not np.isfinite(self.x).all():
+            raise FloatingPointError("the fluid diverged: a particle position is NaN or infinite")
+        self.time += dt
+        return n_sub
+
+
+def _interpolate(r0, t0, r1, t1, f):
+    """Pose a fraction f of the way from (r0, t0) to (r1, t1) (rotation by its log map)."""
+    from scipy.spatial.transform import Rotation, Slerp
+
+    if f <= 0.0:
+        return np.ascontiguousarray(r0), np.ascontiguousarray(t0)
+    if f >= 1.0:
+        return np.ascontiguousarray(r1), np.ascontiguousarray(t1)
+    slerp = Slerp([0.0, 1.0], Rotation.from_matrix(np.stack([r0, r1])))
+    return np.ascontiguousarray(slerp(f).as_matrix()), np.ascontiguousarray(t0 + f * (t1 - t0))
