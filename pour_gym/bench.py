@@ -180,3 +180,74 @@ def label_table(rows: list[dict]) -> str:
     ]
     lines += [f"| {r['vertices']} | {r['transfer_s']:.2f} | {r['asset_s']:.2f} |" for r in rows]
     return "\n".join(lines)
+
+
+def _cylinder_cup(radius: float, height: float, wall: float = 0.004, base: float = 0.006):
+    import trimesh
+
+    outer = trimesh.creation.cylinder(radius=radius + wall, height=height, sections=96)
+    outer.apply_translation([0, 0, height / 2])
+    inner = trimesh.creation.cylinder(radius=radius, height=height, sections=96)
+    inner.apply_translation([0, 0, height / 2 + base])
+    return trimesh.boolean.difference([outer, inner], engine="manifold")
+
+
+def bench_fluid(sizes: list[int], repeats: int = 5, seconds: float = 0.25) -> dict:
+    """Particle-substeps per second of the PBF fluid settling in a cylinder cup.
+
+    For each size a cup is made wide enough to hold the particles as a 6 cm column; the
+    fluid settles for 0.25 s, then ``repeats`` runs of ``seconds`` of simulated time are
+    timed (4 solver iterations, 240 Hz substeps).
+
+    Args:
+        sizes: particle counts.
+        repeats: timed runs per size; the median is reported.
+        seconds: simulated time per run, s.
+
+    Returns:
+        ``{"pbf": {"<n>": rate}, "realtime": {"<n>": simulated s per wall s}, "rows": [...]}``.
+    """
+    import time
+
+    from pour_gym.fluid import PBFConfig, PBFluid, build_sdf
+
+    cfg = PBFConfig()
+    rates, realtime, rows = {}, {}, []
+    bar = tqdm(total=len(sizes) * repeats, desc="bench fluid", file=sys.stderr)
+    for n in sizes:
+        column = 0.06
+        radius = float(np.sqrt(n * cfg.particle_volume / (np.pi * column))) + cfg.spacing
+        sdf = build_sdf(_cylinder_cup(radius, column + 0.04), spacing=0.001)
+        s = cfg.spacing
+        g = np.arange(-radius + s / 2, radius, s)
+        zs = np.arange(0.006 + s / 2, 0.2, s)
+        pts = np.stack(np.meshgrid(g, g, zs, indexing="ij"), -1).reshape(-1, 3)
+        pts = pts[np.hypot(pts[:, 0], pts[:, 1]) < radius - s / 2][:n]
+        fluid = PBFluid(pts, cfg)
+        fluid.add_collider(sdf)
+        for _ in range(15):
+            fluid.step(1 / 60)
+        runs = []
+        for _ in range(repeats):
+            t = time.perf_counter()
+            substeps = sum(fluid.step(1 / 60) for _ in range(int(round(seconds * 60))))
+            wall = time.perf_counter() - t
+            runs.append((len(pts) * substeps / wall, seconds / wall))
+            bar.update()
+        rates[str(n)] = statistics.median(r[0] for r in runs)
+        realtime[str(n)] = statistics.median(r[1] for r in runs)
+        rows.append({"particles": n, "rate": rates[str(n)], "realtime": realtime[str(n)]})
+    bar.close()
+    return {"pbf": rates, "realtime": realtime, "rows": rows}
+
+
+def fluid_table(result: dict) -> str:
+    """Markdown table of :func:`bench_fluid`."""
+    lines = [
+        "| particles | particle-substeps/s (median) | simulated s per wall s |",
+        "|---:|---:|---:|",
+    ]
+    lines += [
+        f"| {r['particles']} | {r['rate']:.3g} | {r['realtime']:.2f} |" for r in result["rows"]
+    ]
+    return "\n".join(lines)

@@ -345,8 +345,19 @@ def cmd_report_warping(reports: dict[str, dict]) -> str:
 
 def cmd_bench(args: argparse.Namespace) -> Output:
     """Benchmarks."""
-    from pour_gym.bench import bench_label, bench_reconstruct, label_table, reconstruct_table
+    from pour_gym.bench import (
+        bench_fluid,
+        bench_label,
+        bench_reconstruct,
+        fluid_table,
+        label_table,
+        reconstruct_table,
+    )
 
+    if args.what == "fluid":
+        sizes = [int(s) for s in (args.sizes or "1000,2000,4000,16000").split(",")]
+        result = bench_fluid(sizes, repeats=args.repeats)
+        return (result, lambda: fluid_table(result))
     if args.what == "label":
         sizes = [int(s) for s in (args.sizes or "5000,10000,20000,40000").split(",")]
         rows = bench_label(sizes, repeats=args.repeats)
@@ -425,7 +436,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", help="folder (default: the packaged assets folder)")
 
     p = add("bench", cmd_bench, "benchmarks (medians of repeated runs)")
-    p.add_argument("what", choices=["reconstruct", "label"])
+    p.add_argument("what", choices=["reconstruct", "label", "fluid"])
     p.add_argument("--sizes", help="comma-separated sizes (points or target vertices)")
     p.add_argument("--repeats", type=int, default=3)
 
