@@ -230,7 +230,7 @@ def bench_fluid(sizes: list[int], repeats: int = 5, seconds: float = 0.25) -> di
         runs = []
         for _ in range(repeats):
             t = time.perf_counter()
-            substeps = sum(fluid.step(1 / 60) for _ in range(int(round(seconds * 60))))
+            substeps = sum(fluid.step(1 / 60) for _ in range(round(seconds * 60)))
             wall = time.perf_counter() - t
             runs.append((len(pts) * substeps / wall, seconds / wall))
             bar.update()

@@ -18,7 +18,6 @@ from dataclasses import asdict, dataclass
 
 import numba as nb
 import numpy as np
-
 from scipy.spatial.transform import Rotation, Slerp
 
 from pour_gym.fluid.sdf import SignedDistanceField, sample_sdf
