@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from pour_gym.objects import build_object
+from pour_gym.objects import build_object, cylinder_cup
 from pour_gym.scan import ScanConfig, turntable_scan
 
 _RUNNER = """
@@ -182,16 +182,6 @@ def label_table(rows: list[dict]) -> str:
     return "\n".join(lines)
 
 
-def _cylinder_cup(radius: float, height: float, wall: float = 0.004, base: float = 0.006):
-    import trimesh
-
-    outer = trimesh.creation.cylinder(radius=radius + wall, height=height, sections=96)
-    outer.apply_translation([0, 0, height / 2])
-    inner = trimesh.creation.cylinder(radius=radius, height=height, sections=96)
-    inner.apply_translation([0, 0, height / 2 + base])
-    return trimesh.boolean.difference([outer, inner], engine="manifold")
-
-
 def bench_fluid(sizes: list[int], repeats: int = 5, seconds: float = 0.25) -> dict:
     """Particle-substeps per second of the PBF fluid settling in a cylinder cup.
 
@@ -217,7 +207,7 @@ def bench_fluid(sizes: list[int], repeats: int = 5, seconds: float = 0.25) -> di
     for n in sizes:
         column = 0.06
         radius = float(np.sqrt(n * cfg.particle_volume / (np.pi * column))) + cfg.spacing
-        sdf = build_sdf(_cylinder_cup(radius, column + 0.04), spacing=0.001)
+        sdf = build_sdf(cylinder_cup(radius - 0.004, column + 0.04), spacing=0.001)
         s = cfg.spacing
         g = np.arange(-radius + s / 2, radius, s)
         zs = np.arange(0.006 + s / 2, 0.2, s)

@@ -48,6 +48,15 @@ def _decimate(mesh: trimesh.Trimesh, faces: int) -> trimesh.Trimesh:
     return trimesh.Trimesh(np.asarray(m.vertices), np.asarray(m.triangles), process=False)
 
 
+def _part_legend(fig, parts: list[Part]) -> None:
+    """A legend of part colours along the bottom of the figure."""
+    handles = [
+        plt.Line2D([], [], marker="s", ls="", color=PART_COLORS[p], label=p.name.lower())
+        for p in parts
+    ]
+    fig.legend(handles=handles, loc="lower center", ncol=len(handles), frameon=False)
+
+
 def _set_equal_axes(ax, points: np.ndarray) -> None:
     lo, hi = points.min(axis=0), points.max(axis=0)
     centre, half = (lo + hi) / 2.0, (hi - lo).max() / 2.0
@@ -95,12 +104,7 @@ def render_mesh(
         ax.view_init(elev=elev, azim=azim)
         ax.set_axis_off()
     if labels is not None:
-        handles = [
-            plt.Line2D([], [], marker="s", ls="", color=PART_COLORS[p], label=p.name.lower())
-            for p in Part
-            if np.any(np.asarray(labels) == p)
-        ]
-        fig.legend(handles=handles, loc="lower center", ncol=len(handles), frameon=False)
+        _part_legend(fig, [p for p in Part if np.any(np.asarray(labels) == p)])
     if title:
         fig.suptitle(title)
     fig.tight_layout()
@@ -145,11 +149,7 @@ def render_gallery(
         ax.view_init(elev=view[0], azim=view[1])
         ax.set_axis_off()
         ax.set_title(title, fontsize=10)
-    handles = [
-        plt.Line2D([], [], marker="s", ls="", color=PART_COLORS[p], label=p.name.lower())
-        for p in Part
-    ]
-    fig.legend(handles=handles, loc="lower center", ncol=len(handles), frameon=False)
+    _part_legend(fig, list(Part))
     fig.tight_layout(rect=(0, 0.04, 1, 1))
     fig.savefig(path, dpi=90)
     plt.close(fig)

@@ -12,22 +12,19 @@ from scipy.spatial.transform import Rotation
 
 from pour_gym.errors import InputError
 from pour_gym.fluid import PBFConfig, PBFluid, build_sdf
+from pour_gym.objects import cylinder_cup
 
 R_IN, WALL, BASE, HEIGHT = 0.036, 0.004, 0.006, 0.1
 
 
 @pytest.fixture(scope="module")
-def cylinder_cup():
-    outer = trimesh.creation.cylinder(radius=R_IN + WALL, height=HEIGHT, sections=96)
-    outer.apply_translation([0, 0, HEIGHT / 2])
-    inner = trimesh.creation.cylinder(radius=R_IN, height=HEIGHT, sections=96)
-    inner.apply_translation([0, 0, HEIGHT / 2 + BASE])
-    return trimesh.boolean.difference([outer, inner], engine="manifold")
+def cup():
+    return cylinder_cup(R_IN, HEIGHT, WALL, BASE)
 
 
 @pytest.fixture(scope="module")
-def cup_sdf(cylinder_cup, tmp_path_factory):
-    return build_sdf(cylinder_cup, spacing=0.001, cache_dir=tmp_path_factory.mktemp("sdf"))
+def cup_sdf(cup, tmp_path_factory):
+    return build_sdf(cup, spacing=0.001, cache_dir=tmp_path_factory.mktemp("sdf"))
 
 
 def column(spacing, height):
@@ -37,7 +34,7 @@ def column(spacing, height):
     return pts[np.hypot(pts[:, 0], pts[:, 1]) < R_IN - spacing / 2]
 
 
-def test_sdf_matches_the_analytic_wall(cup_sdf, cylinder_cup, tmp_path):
+def test_sdf_matches_the_analytic_wall(cup_sdf, cup, tmp_path):
     rng = np.random.default_rng(0)
     # Points at mid-height: the distance to the wall material is radial.
     r = rng.uniform(0.0, 0.06, 500)
@@ -55,8 +52,8 @@ def test_sdf_matches_the_analytic_wall(cup_sdf, cylinder_cup, tmp_path):
     radial = -pts[inside, :2] / r[inside, None]
     assert np.all(np.sum(grad[inside, :2] * radial, axis=1) > 0.95)
     # The cache returns the same field.
-    again = build_sdf(cylinder_cup, spacing=0.001, cache_dir=tmp_path)
-    cached = build_sdf(cylinder_cup, spacing=0.001, cache_dir=tmp_path)
+    again = build_sdf(cup, spacing=0.001, cache_dir=tmp_path)
+    cached = build_sdf(cup, spacing=0.001, cache_dir=tmp_path)
     assert np.array_equal(again.values, cached.values)
     assert len(list(tmp_path.glob("sdf_*.npz"))) == 1
 

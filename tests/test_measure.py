@@ -6,20 +6,12 @@ import trimesh
 
 from pour_gym.errors import InputError
 from pour_gym.measure import chamfer_distance, container_dimensions, holding_volume
-
-
-def cylinder_cup(radius=0.04, height=0.09, wall=0.004, base=0.006):
-    """An open cylinder cup: outer cylinder minus an inner one raised by the base."""
-    outer = trimesh.creation.cylinder(radius=radius, height=height, sections=128)
-    outer.apply_translation([0, 0, height / 2])
-    inner = trimesh.creation.cylinder(radius=radius - wall, height=height, sections=128)
-    inner.apply_translation([0, 0, height / 2 + base])
-    return trimesh.boolean.difference([outer, inner], engine="manifold")
+from pour_gym.objects import cylinder_cup
 
 
 def test_holding_volume_of_a_cylinder_cup():
     r, h, w, b = 0.04, 0.09, 0.004, 0.006
-    cup = cylinder_cup(r, h, w, b)
+    cup = cylinder_cup(r - w, h, w, b, sections=128)
     # Polygon area of 128 sections, times the height of the cavity.
     n = 128
     area = 0.5 * n * (r - w) ** 2 * np.sin(2 * np.pi / n)
@@ -28,7 +20,7 @@ def test_holding_volume_of_a_cylinder_cup():
 
 
 def test_dimensions_of_a_cylinder_cup():
-    cup = cylinder_cup()
+    cup = cylinder_cup(0.036, 0.09)
     d = container_dimensions(cup)
     assert d.height == pytest.approx(0.09, rel=1e-6)
     # The top band is the flat annulus from r = 0.036 to 0.040: its vertices are the two
@@ -42,7 +34,7 @@ def test_a_closed_box_holds_nothing():
 
 
 def test_holding_volume_rejects_open_meshes():
-    cup = cylinder_cup()
+    cup = cylinder_cup(0.036, 0.09)
     open_cup = cup.copy()
     open_cup.update_faces(np.arange(len(cup.faces)) % 7 != 0)
     with pytest.raises(InputError, match="not closed"):

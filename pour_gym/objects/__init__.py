@@ -7,7 +7,7 @@ Example:
     (True, 265)
 """
 
-from pour_gym.objects.build import ContainerModel, build_object
+from pour_gym.objects.build import ContainerModel, build_object, cylinder_cup
 from pour_gym.objects.catalogue import CUP_NAMES, OBJECT_NAMES, SPECS, ObjectSpec, get_spec
 
 __all__ = [
@@ -17,5 +17,6 @@ __all__ = [
     "ContainerModel",
     "ObjectSpec",
     "build_object",
+    "cylinder_cup",
     "get_spec",
 ]

@@ -374,3 +374,25 @@ def build_object(spec: ObjectSpec | str) -> ContainerModel:
         profile=profile,
         ring_scale=scale,
     )
+
+
+def cylinder_cup(
+    radius: float, height: float, wall: float = 0.004, base: float = 0.006, sections: int = 96
+) -> trimesh.Trimesh:
+    """An open cylindrical cup: the simplest container with closed-form answers.
+
+    Args:
+        radius: inner radius, in m.
+        height: outer height, in m (the cavity is ``height - base`` deep).
+        wall: wall thickness, in m.
+        base: thickness of the base, in m.
+        sections: sides of the polygonal cross-section.
+
+    Returns:
+        A watertight mesh standing on z = 0.
+    """
+    outer = trimesh.creation.cylinder(radius=radius + wall, height=height, sections=sections)
+    outer.apply_translation([0.0, 0.0, height / 2.0])
+    inner = trimesh.creation.cylinder(radius=radius, height=height, sections=sections)
+    inner.apply_translation([0.0, 0.0, height / 2.0 + base])
+    return trimesh.boolean.difference([outer, inner], engine="manifold")
