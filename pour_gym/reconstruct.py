@@ -262,17 +262,13 @@ def reconstruct(
     seconds["prepare"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    sample = np.random.default_rng(0).choice(len(data), min(5000, len(data)), replace=False)
-    if cfg.inner == "thesis":
-        fld = fit_gaussian_field(
-            voxel_means(data, cfg.inducing_spacing), cfg.sigma, cfg.regularization, cfg.cutoff
-        )
-        level = cfg.tau
-    else:
-        train = data - 0.5 * cfg.wall * data_n
-        fld = fit_gaussian_field(
-            voxel_means(train, cfg.inducing_spacing), cfg.sigma, cfg.regularization, cfg.cutoff
-        )
+    train = data if cfg.inner == "thesis" else data - 0.5 * cfg.wall * data_n
+    fld = fit_gaussian_field(
+        voxel_means(train, cfg.inducing_spacing), cfg.sigma, cfg.regularization, cfg.cutoff
+    )
+    level = cfg.tau
+    if cfg.inner == "offset":
+        sample = np.random.default_rng(0).choice(len(data), min(5000, len(data)), replace=False)
         level = float(np.median(fld(data[sample])))
     seconds["fit"] = time.perf_counter() - t0
     t0 = time.perf_counter()
