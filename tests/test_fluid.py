@@ -1,8 +1,8 @@
 """The particle fluid: collisions, bookkeeping, determinism, hydrostatics (small counts).
 
-Measured against the issue's targets, not all are met yet: the settled column stands 6 %
-below N * v / (pi R^2) at 8 iterations (target 5 %); the tests below assert what the solver
-does today and fail if it gets worse.
+The settled column meets the hydrostatic target (fill height within 5 % of
+N * v / (pi R^2)) with 8 over-relaxed iterations at 480 Hz; at the default 4 plain
+iterations and 240 Hz it stands about 12 % short (see README).
 """
 
 import numpy as np
@@ -66,7 +66,7 @@ def test_sdf_refuses_open_meshes():
 
 
 def test_settled_column_height_and_rest(cup_sdf):
-    cfg = PBFConfig(iterations=8, substep=1 / 480)
+    cfg = PBFConfig(iterations=8, substep=1 / 480, over_relaxation=1.5)
     pts = column(cfg.spacing, 0.06)
     fluid = PBFluid(pts, cfg)
     fluid.add_collider(cup_sdf)
@@ -76,7 +76,16 @@ def test_settled_column_height_and_rest(cup_sdf):
         energies.append(0.5 * np.mean(np.sum(fluid.v**2, axis=1)))
     ideal = len(pts) * cfg.particle_volume / (np.pi * R_IN**2)
     top = np.percentile(fluid.x[:, 2], 99) + cfg.radius - BASE
-    assert top == pytest.approx(ideal, rel=0.10)
+    assert top == pytest.approx(ideal, rel=0.05)
+    # Density error in the bulk (particles a kernel radius from the free surface and walls).
+    x = fluid.x
+    bulk = (
+        (np.hypot(x[:, 0], x[:, 1]) < R_IN - fluid.h - cfg.radius)
+        & (x[:, 2] > BASE + fluid.h + cfg.radius)
+        & (x[:, 2] < x[:, 2].max() - fluid.h)
+    )
+    assert bulk.sum() > 100
+    assert np.abs(fluid.relative_density()[bulk] - 1.0).mean() < 0.03
     assert energies[-1] < 0.2 * max(energies)  # the splash of release dies down
     assert len(fluid.x) == len(pts)
 
