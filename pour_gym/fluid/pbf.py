@@ -46,6 +46,8 @@ class PBFConfig:
             (0: pressure only, as a liquid without surface tension).
         over_relaxation: factor on each Jacobi correction; above 1 the pressure of a deep
             column builds up in fewer iterations.
+        wall_density: count the density a wall stands in for (the fluid has no particles
+            beyond it), so particles do not crowd against walls and the table.
     """
 
     spacing: float = 0.005
@@ -60,6 +62,7 @@ class PBFConfig:
     max_travel: float = 1.5
     tension: float = 0.0
     over_relaxation: float = 1.0
+    wall_density: bool = True
 
     @property
     def radius(self) -> float:
@@ -96,6 +99,36 @@ def _spiky_grad_scale(r, h):
 @nb.njit(cache=True)
 def _hash(cx, cy, cz, size):
     return ((cx * 73856093) ^ (cy * 19349663) ^ (cz * 83492791)) & (size - 1)
+
+
+def wall_density_table(h: float, vol: float, samples: int = 64) -> np.ndarray:
+    """Relative density a flat wall's half-space would add at distances 0 .. h from it.
+
+    The fluid has no particles inside walls, so a particle near one sees too little
+    density; a full half-space of fluid beyond the wall would add ``vol * sum W``, which in
+    the continuum limit is the integral of the kernel over that half-space.
+
+    Args:
+        h: smoothing radius, m.
+        vol: m / rho_0 of a particle, m^3.
+        samples: table entries.
+
+    Returns:
+        (samples,) density over rest density, for distances ``linspace(0, h, samples)``.
+    """
+    d = np.linspace(0.0, h, samples)
+    # Integrate W over the cap {z > d} of the kernel's ball in slabs of thickness dz.
+    z = np.linspace(0.0, h, 400)
+    dz = z[1] - z[0]
+    slab = np.zeros_like(z)
+    for k, zk in enumerate(z):
+        rr = np.linspace(0.0, np.sqrt(max(h * h - zk * zk, 0.0)), 200)
+        w = 315.0 / (64.0 * np.pi * h**9) * np.clip(h * h - rr * rr - zk * zk, 0.0, None) ** 3
+        slab[k] = np.trapezoid(2.0 * np.pi * rr * w, rr)
+    cum = np.cumsum(slab[::-1])[::-1] * dz
+    # The continuum integral over all space is 1 / vol' for a lattice: scale to its sum.
+    total = 2.0 * cum[0]
+    return np.interp(d, z, cum) / total
 
 
 @nb.njit(cache=True)
@@ -166,9 +199,28 @@ def _find_neighbours(p, h, order, start, nbr, nbr_count):
 
 @nb.njit(parallel=True, cache=True)
 def _solve_density(
-    p, nbr, nbr_count, lam, delta, h, vol, eps, scorr_k, w_dq, iterations, tension, omega
+    p,
+    nbr,
+    nbr_count,
+    lam,
+    delta,
+    h,
+    vol,
+    eps,
+    scorr_k,
+    w_dq,
+    iterations,
+    tension,
+    omega,
+    wall,
+    wall_table,
 ):
-    """Jacobi iterations of the clamped density constraint with artificial pressure."""
+    """Jacobi iterations of the clamped density constraint with artificial pressure.
+
+    ``wall[i]`` is particle i's distance to the nearest wall; ``wall_table`` the density a
+    wall adds at distances 0 .. h (see :func:`wall_density_table`).
+    """
+    n_table = wall_table.shape[0]
     n = p.shape[0]
     h2 = h * h
     # Kernel constants, with the particle volume m / rho_0 folded in.
@@ -199,6 +251,11 @@ def _solve_density(
                 gy += g * ry
                 gz += g * rz
                 sum2 += g * g * r2
+            if wall[i] < h:
+                u = max(wall[i], 0.0) / h * (n_table - 1)
+                k = min(int(u), n_table - 2)
+                f = u - k
+                rho += wall_table[k] * (1.0 - f) + wall_table[k + 1] * f
             c = rho - 1.0
             if c < -tension:
                 c = -tension  # limited tension: a free surface is not pulled together
@@ -325,6 +382,22 @@ def _predict(x, v, p, prev, gz, dt):
             p[i, a] = x[i, a] + v[i, a] * dt
 
 
+@nb.njit(parallel=True, cache=True)
+def _wall_distance(p, out, values, origin, spacing, rot, trans):
+    """out[i] = min(out[i], signed distance of particle i to one container's material)."""
+    for i in nb.prange(p.shape[0]):
+        q = np.empty(3)
+        for a in range(3):
+            q[a] = (
+                rot[0, a] * (p[i, 0] - trans[0])
+                + rot[1, a] * (p[i, 1] - trans[1])
+                + rot[2, a] * (p[i, 2] - trans[2])
+            )
+        d = sample_sdf(values, origin, spacing, q, np.empty(3))
+        if d < out[i]:
+            out[i] = d
+
+
 @dataclass
 class Collider:
     """A container the fluid collides with: its field and its pose (world = R q + t)."""
@@ -369,6 +442,7 @@ class PBFluid:
         self._nbr_count = np.zeros(n, dtype=np.int64)
         self._lam = np.zeros(n)
         self._delta = np.zeros((n, 3))
+        self._wall = np.full(n, np.inf)
         self.colliders: list[Collider] = []
         self.h = cfg.kernel_ratio * cfg.spacing
         g = np.arange(-4, 5) * cfg.spacing
@@ -386,6 +460,7 @@ class PBFluid:
         self._eps = cfg.relaxation * rest_sum
         self._scorr = cfg.scorr_k / rest_sum
         self._w_dq = _poly6((cfg.scorr_dq * self.h) ** 2, self.h)
+        self._wall_table = wall_density_table(self.h, self._vol)
         self.time = 0.0
 
     def relative_density(self) -> np.ndarray:
@@ -432,6 +507,20 @@ class PBFluid:
         starts = [(c.prev_rotation, c.prev_translation) for c in self.colliders]
         for s in range(n_sub):
             _predict(self.x, self.v, self._p, self._prev, GRAVITY[2], h_sub)
+            self._wall.fill(np.inf)
+            if cfg.wall_density:
+                if self.floor is not None:
+                    np.subtract(self._p[:, 2], self.floor, out=self._wall)
+                for c in self.colliders:
+                    _wall_distance(
+                        self._p,
+                        self._wall,
+                        c.sdf.values,
+                        c.sdf.origin,
+                        c.sdf.spacing,
+                        c.rotation,
+                        c.translation,
+                    )
             _sort_cells(self._p, self.h, self._table, self._order, self._start)
             _find_neighbours(self._p, self.h, self._order, self._start, self._nbr, self._nbr_count)
             _solve_density(
@@ -448,6 +537,8 @@ class PBFluid:
                 cfg.iterations,
                 cfg.tension,
                 cfg.over_relaxation,
+                self._wall,
+                self._wall_table,
             )
             f0, f1 = s / n_sub, (s + 1) / n_sub
             for c, (r0, t0) in zip(self.colliders, starts, strict=True):
