@@ -108,6 +108,18 @@ def build_sdf(
     return field
 
 
+@nb.njit(cache=True, inline="always")
+def _clamp_axis(x, origin, spacing, n):
+    """Grid coordinate of x along one axis, clamped inside, and the distance clamped off."""
+    u = (x - origin) / spacing
+    hi = n - 1.000001
+    if u < 0.0:
+        return 0.0, -u * spacing
+    if u > hi:
+        return hi, (u - hi) * spacing
+    return u, 0.0
+
+
 @nb.njit(cache=True)
 def sample_sdf(values, origin, spacing, p, grad):
     """Trilinear signed distance at mesh-frame point ``p``; writes its gradient to ``grad``.
@@ -115,25 +127,16 @@ def sample_sdf(values, origin, spacing, p, grad):
     Outside the grid the distance to the grid's box is added to the nearest node's value,
     which keeps far particles far.
     """
-    nx, ny, nz = values.shape
+    # Scalars rather than small arrays: this runs for every particle in every substep.
     extra = 0.0
-    f = np.empty(3)
-    idx = np.empty(3, dtype=np.int64)
-    dims = (nx, ny, nz)
-    for k in range(3):
-        u = (p[k] - origin[k]) / spacing
-        hi = dims[k] - 1.000001
-        if u < 0.0:
-            extra += -u * spacing
-            u = 0.0
-        elif u > hi:
-            extra += (u - hi) * spacing
-            u = hi
-        i = int(u)
-        idx[k] = i
-        f[k] = u - i
-    i, j, m = idx[0], idx[1], idx[2]
-    fx, fy, fz = f[0], f[1], f[2]
+    u, e = _clamp_axis(p[0], origin[0], spacing, values.shape[0])
+    extra += e
+    v, e = _clamp_axis(p[1], origin[1], spacing, values.shape[1])
+    extra += e
+    w, e = _clamp_axis(p[2], origin[2], spacing, values.shape[2])
+    extra += e
+    i, j, m = int(u), int(v), int(w)
+    fx, fy, fz = u - i, v - j, w - m
     c000 = values[i, j, m]
     c100 = values[i + 1, j, m]
     c010 = values[i, j + 1, m]
