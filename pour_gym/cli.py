@@ -86,20 +86,13 @@ def cmd_objects(args: argparse.Namespace) -> Output:
 
 
 def _mesh_or_object(source: str, scale: float):
-    """A catalogue object's mesh and labels, or a mesh file's mesh (labels None)."""
-    from pour_gym.fileio import MESH_SUFFIXES, load_mesh, validate_mesh
-    from pour_gym.objects import OBJECT_NAMES, build_object
+    """A catalogue container's or a mesh file's mesh, and ground-truth labels (or None)."""
+    from pour_gym.assets import resolve_target
+    from pour_gym.fileio import validate_mesh
 
-    if source in OBJECT_NAMES:
-        model = build_object(source)
-        return model.mesh, model.labels
-    if Path(source).suffix.lower() in MESH_SUFFIXES or Path(source).exists():
-        mesh = load_mesh(source, scale)
-        validate_mesh(mesh, name=source)
-        return mesh, None
-    raise InputError(
-        f"{source!r} is neither a thesis object ({', '.join(OBJECT_NAMES)}) nor a mesh file"
-    )
+    name, mesh, truth = resolve_target(source, scale)
+    validate_mesh(mesh, name=name)
+    return mesh, (truth.labels if truth is not None else None)
 
 
 def cmd_scan(args: argparse.Namespace) -> Output:
@@ -191,11 +184,10 @@ def _reconstruct_text(report: dict) -> str:
 
 def cmd_measure(args: argparse.Namespace) -> Output:
     """Height, rim radius and holding volume of an upright watertight mesh."""
+    from pour_gym.fileio import validate_mesh
     from pour_gym.measure import container_dimensions
 
     mesh, _ = _mesh_or_object(args.source, args.scale)
-    from pour_gym.fileio import validate_mesh
-
     validate_mesh(mesh, name=args.source, watertight=True)
     d = container_dimensions(mesh)
     doc = {
@@ -226,7 +218,7 @@ def cmd_report(args: argparse.Namespace) -> Output:
         warp = {}
         for name in tqdm(OBJECT_NAMES, desc="label from red_cup", file=sys.stderr):
             warp[name] = {m: label_container(name, "red_cup", m).meta for m in ("thesis", "best")}
-        return (warp, lambda: cmd_report_warping(warp))
+        return (warp, lambda: warping_tables(warp))
     reports = {
         name: generate_model(name).report
         for name in tqdm(OBJECT_NAMES, desc="scan + reconstruct", file=sys.stderr)
@@ -304,7 +296,7 @@ def cmd_build_assets(args: argparse.Namespace) -> Output:
     return (done, lambda: f"wrote {len(done)} assets under {root}")
 
 
-def cmd_report_warping(reports: dict[str, dict]) -> str:
+def warping_tables(reports: dict[str, dict]) -> str:
     """Tables 4.1-4.3 and per-part IoU beside the thesis's numbers."""
     out = []
     for key, title, unit, factor in (
@@ -397,7 +389,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--png", help="also draw all of them, labelled, into this PNG")
 
     p = add("scan", cmd_scan, "simulated turntable depth scan of an object or mesh file")
-    p.add_argument("source", help="thesis object name or mesh file (OBJ/STL/PLY/GLB)")
+    p.add_argument("source", help="catalogue container or mesh file (OBJ/STL/PLY/GLB)")
     p.add_argument("--out", required=True, help="output cloud (.ply, .pcd, .xyz, .npy)")
     p.add_argument("--views", type=int, default=24, help="turntable steps per revolution")
     p.add_argument("--noise", type=float, default=0.0005, help="depth noise std, m")
