@@ -71,6 +71,31 @@ def top_band_rim(
     return centre, radius, top
 
 
+def azimuth_wedges(
+    points: np.ndarray, wedges: int, axis: np.ndarray | tuple[float, float] = (0.0, 0.0)
+) -> tuple[np.ndarray, np.ndarray]:
+    """Azimuth of each point about a vertical axis, and the wedge it falls in.
+
+    Args:
+        points: (N, 3) positions, z up.
+        wedges: number of equal wedges from -pi to pi.
+        axis: (x, y) of the vertical axis.
+
+    Returns:
+        ``(azimuth, wedge)``: (N,) angles in rad and (N,) wedge indices.
+    """
+    azimuth = np.arctan2(points[:, 1] - axis[1], points[:, 0] - axis[0])
+    wedge = np.minimum(((azimuth + np.pi) / (2 * np.pi) * wedges).astype(int), wedges - 1)
+    return azimuth, wedge
+
+
+def max_per_group(groups: np.ndarray, values: np.ndarray, n: int) -> np.ndarray:
+    """The largest value in each of ``n`` groups (-inf for an empty group)."""
+    out = np.full(n, -np.inf)
+    np.maximum.at(out, groups, values)
+    return out
+
+
 def rim_band_mask(
     vertices: np.ndarray, band: float = 0.002, sectors: int = 36
 ) -> tuple[np.ndarray, float]:
@@ -86,11 +111,8 @@ def rim_band_mask(
     """
     v = np.asarray(vertices, dtype=float)
     upper = v[v[:, 2] >= np.percentile(v[:, 2], 90)]
-    axis = upper[:, :2].mean(axis=0)
-    azimuth = np.arctan2(v[:, 1] - axis[1], v[:, 0] - axis[0])
-    wedge = np.minimum(((azimuth + np.pi) / (2 * np.pi) * sectors).astype(int), sectors - 1)
-    top = np.full(sectors, -np.inf)
-    np.maximum.at(top, wedge, v[:, 2])
+    _, wedge = azimuth_wedges(v, sectors, upper[:, :2].mean(axis=0))
+    top = max_per_group(wedge, v[:, 2], sectors)
     # On a coarse mesh a wedge may hold no rim vertex at all; its top is then something
     # lower (a handle), a dip against both neighbouring wedges, and it is left out.
     dip = 0.1 * float(np.ptp(v[:, 2]))
@@ -312,11 +334,6 @@ def cavity_from_grid(
     return Cavity(mask, origin, voxel, float(origin[2] + (lo - 0.5) * voxel))
 
 
-def holding_volume_from_grid(occupied: np.ndarray, voxel: float, seed_xy: tuple[int, int]) -> float:
-    """Holding volume in m^3 of a voxelised upright container (see :func:`cavity_from_grid`)."""
-    return cavity_from_grid(occupied, np.zeros(3), voxel, seed_xy).volume
-
-
 def cavity(mesh: trimesh.Trimesh, voxel: float = 5e-4, closed: bool = True) -> Cavity:
     """The water an upright mesh holds before it overflows, as voxels in the mesh's frame.
 
@@ -330,7 +347,14 @@ def cavity(mesh: trimesh.Trimesh, voxel: float = 5e-4, closed: bool = True) -> C
         The cavity.
     """
     occupied, origin = (occupancy_grid if closed else shell_occupancy)(mesh, voxel)
-    centre, _, _ = top_band_rim(mesh.vertices)
+    return _cavity_below_rim(occupied, origin, voxel, np.asarray(mesh.vertices))
+
+
+def _cavity_below_rim(
+    occupied: np.ndarray, origin: np.ndarray, voxel: float, points: np.ndarray
+) -> Cavity:
+    """The cavity seeded in the column through the rim centre of ``points``."""
+    centre, _, _ = top_band_rim(points)
     ij = np.round((centre[:2] - origin[:2]) / voxel).astype(int)
     ij = np.clip(ij, 0, np.array(occupied.shape[:2]) - 1)
     return cavity_from_grid(occupied, origin, voxel, (int(ij[0]), int(ij[1])))
@@ -339,13 +363,7 @@ def cavity(mesh: trimesh.Trimesh, voxel: float = 5e-4, closed: bool = True) -> C
 def shell_holding_volume(points: np.ndarray, voxel: float) -> float:
     """Holding volume in m^3 of an upright surface given as dense points on it."""
     occupied, origin = shell_occupancy_from_points(points, voxel)
-    centre, _, _ = top_band_rim(points)
-    ij = np.clip(
-        np.round((centre[:2] - origin[:2]) / voxel).astype(int),
-        0,
-        np.array(occupied.shape[:2]) - 1,
-    )
-    return cavity_from_grid(occupied, origin, voxel, (int(ij[0]), int(ij[1]))).volume
+    return _cavity_below_rim(occupied, origin, voxel, points).volume
 
 
 def holding_volume(mesh: trimesh.Trimesh, voxel: float = 5e-4, closed: bool = True) -> float:

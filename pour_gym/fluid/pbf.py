@@ -504,22 +504,23 @@ class PBFluid:
         for c in self.colliders:
             if c.prev_rotation is None:
                 c.prev_rotation, c.prev_translation = c.rotation.copy(), c.translation.copy()
-        starts = [(c.prev_rotation, c.prev_translation) for c in self.colliders]
+        # Each collider's pose at the n_sub + 1 substep boundaries, computed once a step.
+        poses = [_poses(c, n_sub) for c in self.colliders]
         for s in range(n_sub):
             _predict(self.x, self.v, self._p, self._prev, GRAVITY[2], h_sub)
             self._wall.fill(np.inf)
             if cfg.wall_density:
                 if self.floor is not None:
                     np.subtract(self._p[:, 2], self.floor, out=self._wall)
-                for c in self.colliders:
+                for c, (rot, trans) in zip(self.colliders, poses, strict=True):
                     _wall_distance(
                         self._p,
                         self._wall,
                         c.sdf.values,
                         c.sdf.origin,
                         c.sdf.spacing,
-                        c.rotation,
-                        c.translation,
+                        rot[s + 1],
+                        trans[s + 1],
                     )
             _sort_cells(self._p, self.h, self._table, self._order, self._start)
             _find_neighbours(self._p, self.h, self._order, self._start, self._nbr, self._nbr_count)
@@ -540,10 +541,7 @@ class PBFluid:
                 self._wall,
                 self._wall_table,
             )
-            f0, f1 = s / n_sub, (s + 1) / n_sub
-            for c, (r0, t0) in zip(self.colliders, starts, strict=True):
-                ra, ta = _interpolate(r0, t0, c.rotation, c.translation, f0)
-                rb, tb = _interpolate(r0, t0, c.rotation, c.translation, f1)
+            for c, (rot, trans) in zip(self.colliders, poses, strict=True):
                 _collide(
                     self._p,
                     self._prev,
@@ -551,10 +549,10 @@ class PBFluid:
                     c.sdf.values,
                     c.sdf.origin,
                     c.sdf.spacing,
-                    rb,
-                    tb,
-                    ra,
-                    ta,
+                    rot[s + 1],
+                    trans[s + 1],
+                    rot[s],
+                    trans[s],
                 )
             if self.floor is not None:
                 column = self._p[:, 2]
@@ -578,11 +576,19 @@ class PBFluid:
         return n_sub
 
 
-def _interpolate(r0, t0, r1, t1, f):
-    """Pose a fraction f of the way from (r0, t0) to (r1, t1) (rotation by its log map)."""
-    if f <= 0.0 or (np.array_equal(r0, r1) and np.array_equal(t0, t1)):
-        return np.ascontiguousarray(r0), np.ascontiguousarray(t0)
-    if f >= 1.0:
-        return np.ascontiguousarray(r1), np.ascontiguousarray(t1)
-    slerp = Slerp([0.0, 1.0], Rotation.from_matrix(np.stack([r0, r1])))
-    return np.ascontiguousarray(slerp(f).as_matrix()), np.ascontiguousarray(t0 + f * (t1 - t0))
+def _poses(collider: Collider, n_sub: int) -> tuple[np.ndarray, np.ndarray]:
+    """The collider's poses at the substep boundaries of a step.
+
+    From its previous pose to its current one: rotations (n_sub + 1, 3, 3) by slerp,
+    translations (n_sub + 1, 3) linearly.
+    """
+    r0, t0 = collider.prev_rotation, collider.prev_translation
+    r1, t1 = collider.rotation, collider.translation
+    f = np.linspace(0.0, 1.0, n_sub + 1)
+    trans = np.ascontiguousarray(t0 + f[:, None] * (t1 - t0))
+    if np.array_equal(r0, r1):
+        return np.ascontiguousarray(np.broadcast_to(r0, (n_sub + 1, 3, 3))), trans
+    rot = Slerp([0.0, 1.0], Rotation.from_matrix(np.stack([r0, r1])))(f).as_matrix()
+    # The end points are the poses as given, not their round trip through quaternions.
+    rot[0], rot[-1] = r0, r1
+    return np.ascontiguousarray(rot), trans

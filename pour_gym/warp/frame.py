@@ -25,7 +25,14 @@ import trimesh
 from scipy.spatial.transform import Rotation
 
 from pour_gym.errors import InputError
-from pour_gym.measure import rim_band_mask, shell_holding_volume, surface_samples, top_band_rim
+from pour_gym.measure import (
+    azimuth_wedges,
+    max_per_group,
+    rim_band_mask,
+    shell_holding_volume,
+    surface_samples,
+    top_band_rim,
+)
 
 
 @dataclass(frozen=True)
@@ -180,11 +187,9 @@ def _handle_azimuth(points: np.ndarray, rim_radius: float) -> float | None:
     if len(mid) < 10:
         return None
     r = np.hypot(mid[:, 0], mid[:, 1])
-    az = np.arctan2(mid[:, 1], mid[:, 0])
     bins = 72
-    idx = np.minimum(((az + np.pi) / (2 * np.pi) * bins).astype(int), bins - 1)
-    reach = np.zeros(bins)
-    np.maximum.at(reach, idx, r)
+    az, idx = azimuth_wedges(mid, bins)
+    reach = np.maximum(max_per_group(idx, r, bins), 0.0)
     excess = reach - np.median(reach)
     if excess.max() < 0.25 * rim_radius:
         return None
@@ -211,12 +216,8 @@ def body_profile(points: np.ndarray, bins: int = 40, wedges: int = 36) -> np.nda
     r = np.hypot(points[:, 0], points[:, 1])
     edges = np.linspace(z.min(), z.max(), bins + 1)
     zb = np.clip(np.searchsorted(edges, z, side="right") - 1, 0, bins - 1)
-    az = np.arctan2(points[:, 1], points[:, 0])
-    wb = np.minimum(((az + np.pi) / (2 * np.pi) * wedges).astype(int), wedges - 1)
-    reach = np.full((bins, wedges), np.nan)
-    flat = zb * wedges + wb
-    best = np.full(bins * wedges, -np.inf)
-    np.maximum.at(best, flat, r)
+    _, wb = azimuth_wedges(points, wedges)
+    best = max_per_group(zb * wedges + wb, r, bins * wedges)
     reach = np.where(np.isfinite(best), best, np.nan).reshape(bins, wedges)
     rho = np.nanmedian(np.where(np.isnan(reach).all(axis=1, keepdims=True), 0.0, reach), axis=1)
     rho = np.convolve(np.pad(rho, 1, mode="edge"), np.ones(3) / 3.0, mode="valid")
@@ -234,10 +235,8 @@ def rim_heights(points: np.ndarray, wedges: int = 36) -> np.ndarray:
     Returns:
         (wedges, 2) array of (azimuth of the wedge centre in rad, height in m).
     """
-    az = np.arctan2(points[:, 1], points[:, 0])
-    wb = np.minimum(((az + np.pi) / (2 * np.pi) * wedges).astype(int), wedges - 1)
-    top = np.full(wedges, -np.inf)
-    np.maximum.at(top, wb, points[:, 2])
+    _, wb = azimuth_wedges(points, wedges)
+    top = max_per_group(wb, points[:, 2], wedges)
     # A wedge without a rim vertex (coarse meshes) or with a dip takes its neighbours' mean.
     good = np.isfinite(top)
     low = top < np.median(top[good]) - 0.1 * float(np.ptp(points[:, 2]))
