@@ -23,6 +23,8 @@ from scipy.spatial.transform import Rotation, Slerp
 from pour_gym.fluid.sdf import SignedDistanceField, sample_sdf
 
 GRAVITY = np.array([0.0, 0.0, -9.81])
+# Cells of the neighbour grid, at most (about 16 MB of cell starts).
+MAX_CELLS = 2_000_000
 # Water poured from a table-top cup never moves this fast; a particle that does has diverged.
 MAX_SPEED = 20.0  # m/s
 
@@ -48,6 +50,8 @@ class PBFConfig:
             column builds up in fewer iterations.
         wall_density: count the density a wall stands in for (the fluid has no particles
             beyond it), so particles do not crowd against walls and the table.
+        floor_friction: decay rate of the horizontal velocity of particles on the table,
+            in 1/s.
     """
 
     spacing: float = 0.005
@@ -63,6 +67,7 @@ class PBFConfig:
     tension: float = 0.0
     over_relaxation: float = 1.0
     wall_density: bool = True
+    floor_friction: float = 20.0
 
     @property
     def radius(self) -> float:
@@ -96,11 +101,6 @@ def _spiky_grad_scale(r, h):
     return -45.0 / np.pi / (h * h * h * h * h * h) * d * d / r
 
 
-@nb.njit(cache=True)
-def _hash(cx, cy, cz, size):
-    return ((cx * 73856093) ^ (cy * 19349663) ^ (cz * 83492791)) & (size - 1)
-
-
 def wall_density_table(h: float, vol: float, samples: int = 64) -> np.ndarray:
     """Relative density a flat wall's half-space would add at distances 0 .. h from it.
 
@@ -132,72 +132,71 @@ def wall_density_table(h: float, vol: float, samples: int = 64) -> np.ndarray:
 
 
 @nb.njit(cache=True)
-def _sort_cells(p, h, table, order, start):
-    """Counting sort of the particles by the hash of their cell (cell size h)."""
+def _sort_cells(p, lo, cell, dims, table, order, start, sorted_p):
+    """Counting sort of the particles by their cell in a dense grid over their bounds.
+
+    Cells are numbered z fastest, so the three cells of a column ``(cx, cy, cz-1..cz+1)``
+    are one contiguous run of the sorted arrays. ``sorted_p`` receives the positions in
+    cell order, so that the neighbour search reads contiguous memory.
+    """
     n = p.shape[0]
-    size = start.shape[0] - 1
-    start[:] = 0
+    ny, nz = dims[1], dims[2]
+    n_cells = dims[0] * ny * nz
+    start[: n_cells + 1] = 0
     for i in range(n):
-        k = _hash(
-            int(np.floor(p[i, 0] / h)), int(np.floor(p[i, 1] / h)), int(np.floor(p[i, 2] / h)), size
-        )
+        cx = int((p[i, 0] - lo[0]) / cell)
+        cy = int((p[i, 1] - lo[1]) / cell)
+        cz = int((p[i, 2] - lo[2]) / cell)
+        k = (cx * ny + cy) * nz + cz
         table[i] = k
         start[k + 1] += 1
-    for k in range(size):
+    for k in range(n_cells):
         start[k + 1] += start[k]
     for i in range(n):
         k = table[i]
-        order[start[k]] = i
-        start[k] += 1
-    # Undo the shift the fill loop made: start[k] is again the first slot of bucket k.
-    for k in range(size, 0, -1):
+        s = start[k]
+        order[s] = i
+        sorted_p[s, 0] = p[i, 0]
+        sorted_p[s, 1] = p[i, 1]
+        sorted_p[s, 2] = p[i, 2]
+        start[k] = s + 1
+    # Undo the shift the fill loop made: start[k] is again the first slot of cell k.
+    for k in range(n_cells, 0, -1):
         start[k] = start[k - 1]
     start[0] = 0
 
 
-@nb.njit(parallel=True, cache=True)
-def _find_neighbours(p, h, order, start, nbr, nbr_count):
-    """Each particle's neighbours within h, from the hashed cell list."""
+@nb.njit(parallel=True, cache=True, fastmath=True)
+def _find_neighbours(p, sorted_p, h, lo, cell, dims, order, start, nbr, nbr_count):
+    """Each particle's neighbours within h (<= the cell size), from the sorted cells."""
     n = p.shape[0]
-    size = start.shape[0] - 1
+    nx, ny, nz = dims[0], dims[1], dims[2]
     max_nbr = nbr.shape[1]
     h2 = h * h
     for i in nb.prange(n):
-        cx = int(np.floor(p[i, 0] / h))
-        cy = int(np.floor(p[i, 1] / h))
-        cz = int(np.floor(p[i, 2] / h))
-        keys = np.empty(27, dtype=np.int64)
-        nk = 0
-        for dx in range(-1, 2):
-            for dy in range(-1, 2):
-                for dz in range(-1, 2):
-                    k = _hash(cx + dx, cy + dy, cz + dz, size)
-                    # Two cells can share a bucket: visit each bucket once.
-                    seen = False
-                    for q in range(nk):
-                        if keys[q] == k:
-                            seen = True
-                            break
-                    if not seen:
-                        keys[nk] = k
-                        nk += 1
+        px, py, pz = p[i, 0], p[i, 1], p[i, 2]
+        cx = int((px - lo[0]) / cell)
+        cy = int((py - lo[1]) / cell)
+        cz = int((pz - lo[2]) / cell)
+        z0 = max(cz - 1, 0)
+        z1 = min(cz + 1, nz - 1)
         c = 0
-        for q in range(nk):
-            k = keys[q]
-            for s in range(start[k], start[k + 1]):
-                j = order[s]
-                if j == i:
-                    continue
-                rx = p[i, 0] - p[j, 0]
-                ry = p[i, 1] - p[j, 1]
-                rz = p[i, 2] - p[j, 2]
-                if rx * rx + ry * ry + rz * rz < h2 and c < max_nbr:
-                    nbr[i, c] = j
-                    c += 1
+        for ax in range(max(cx - 1, 0), min(cx + 2, nx)):
+            for ay in range(max(cy - 1, 0), min(cy + 2, ny)):
+                base = (ax * ny + ay) * nz
+                for s in range(start[base + z0], start[base + z1 + 1]):
+                    rx = px - sorted_p[s, 0]
+                    ry = py - sorted_p[s, 1]
+                    rz = pz - sorted_p[s, 2]
+                    if rx * rx + ry * ry + rz * rz < h2 and c < max_nbr:
+                        j = order[s]
+                        if j != i:
+                            nbr[i, c] = j
+                            c += 1
         nbr_count[i] = c
 
 
-@nb.njit(parallel=True, cache=True)
+@nb.njit(parallel=True, cache=True, fastmath=True)
 def _solve_density(
     p,
     nbr,
@@ -340,7 +339,7 @@ def _collide(p, x_prev, radius, values, origin, spacing, rot, trans, prev_rot, p
             p[i, a] = rot[a, 0] * q[0] + rot[a, 1] * q[1] + rot[a, 2] * q[2] + trans[a]
 
 
-@nb.njit(parallel=True, cache=True)
+@nb.njit(parallel=True, cache=True, fastmath=True)
 def _finish(x, v, vn, p, nbr, nbr_count, h, dt, xsph):
     """Velocities from the displacement, XSPH-smoothed; positions take the prediction.
 
@@ -428,21 +427,11 @@ class PBFluid:
     ):
         self.config = cfg = config or PBFConfig()
         self.floor = floor
-        self.x = np.ascontiguousarray(positions, dtype=np.float64).copy()
-        n = len(self.x)
-        self.v = np.zeros_like(self.x)
-        self._p = np.empty_like(self.x)
-        self._prev = np.empty_like(self.x)
-        self._vn = np.empty_like(self.x)
-        size = 1 << int(np.ceil(np.log2(max(2 * n, 16))))
-        self._table = np.empty(n, dtype=np.int64)
-        self._order = np.empty(n, dtype=np.int64)
-        self._start = np.zeros(size + 1, dtype=np.int64)
-        self._nbr = np.empty((n, max_neighbours), dtype=np.int64)
-        self._nbr_count = np.zeros(n, dtype=np.int64)
-        self._lam = np.zeros(n)
-        self._delta = np.zeros((n, 3))
-        self._wall = np.full(n, np.inf)
+        self.max_neighbours = max_neighbours
+        self.x = np.empty((0, 3))
+        self.v = np.empty((0, 3))
+        self._allocate(np.ascontiguousarray(positions, dtype=np.float64).reshape(-1, 3), None)
+        self._start = np.zeros(1, dtype=np.int64)
         self.colliders: list[Collider] = []
         self.h = cfg.kernel_ratio * cfg.spacing
         g = np.arange(-4, 5) * cfg.spacing
@@ -462,6 +451,63 @@ class PBFluid:
         self._w_dq = _poly6((cfg.scorr_dq * self.h) ** 2, self.h)
         self._wall_table = wall_density_table(self.h, self._vol)
         self.time = 0.0
+
+    def _allocate(self, x: np.ndarray, v: np.ndarray | None) -> None:
+        """Take new particle arrays and size the scratch buffers to them."""
+        n = len(x)
+        self.x = np.ascontiguousarray(x, dtype=np.float64)
+        self.v = np.zeros_like(self.x) if v is None else np.ascontiguousarray(v, dtype=np.float64)
+        self._p = np.empty_like(self.x)
+        self._prev = np.empty_like(self.x)
+        self._vn = np.empty_like(self.x)
+        self._sorted = np.empty_like(self.x)
+        self._table = np.empty(n, dtype=np.int64)
+        self._order = np.empty(n, dtype=np.int64)
+        self._nbr = np.empty((n, self.max_neighbours), dtype=np.int64)
+        self._nbr_count = np.zeros(n, dtype=np.int64)
+        self._lam = np.zeros(n)
+        self._delta = np.zeros((n, 3))
+        self._wall = np.full(n, np.inf)
+
+    @property
+    def count(self) -> int:
+        """Number of particles."""
+        return len(self.x)
+
+    def add(self, positions: np.ndarray, velocities: np.ndarray | None = None) -> np.ndarray:
+        """Add particles; returns their indices (they are appended at the end).
+
+        Args:
+            positions: (K, 3) positions, m.
+            velocities: (K, 3) velocities, m/s (zero if not given).
+        """
+        p = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
+        v = np.zeros_like(p) if velocities is None else np.asarray(velocities, float).reshape(-1, 3)
+        if not (np.isfinite(p).all() and np.isfinite(v).all()):
+            raise ValueError("particle positions and velocities must be finite")
+        n = self.count
+        self._allocate(np.concatenate([self.x, p]), np.concatenate([self.v, v]))
+        return np.arange(n, n + len(p))
+
+    def remove(self, mask: np.ndarray) -> None:
+        """Remove the particles where ``mask`` is true; the others keep their order."""
+        keep = ~np.asarray(mask, dtype=bool)
+        if keep.shape != (self.count,):
+            raise ValueError(f"mask of shape {keep.shape} for {self.count} particles")
+        self._allocate(self.x[keep], self.v[keep])
+
+    def _grid(self, p: np.ndarray) -> tuple[np.ndarray, float, np.ndarray]:
+        """A dense cell grid over the particles' bounds (cells of at least h)."""
+        lo = p.min(axis=0) - 1e-9
+        extent = p.max(axis=0) - lo + 1e-9
+        # Particles spread over a table still fit a few million cells; beyond that the
+        # cells grow (the search stays exact, it only checks more pairs).
+        cell = max(self.h, float(np.cbrt(np.prod(extent + self.h) / MAX_CELLS)))
+        dims = (extent // cell).astype(np.int64) + 1
+        n_cells = int(np.prod(dims))
+        if len(self._start) < n_cells + 1:
+            self._start = np.zeros(max(n_cells + 1, 2 * len(self._start)), dtype=np.int64)
+        return lo, cell, dims
 
     def relative_density(self) -> np.ndarray:
         """SPH density of each particle over the rest density (1 at rest, in the bulk)."""
@@ -506,7 +552,7 @@ class PBFluid:
                 c.prev_rotation, c.prev_translation = c.rotation.copy(), c.translation.copy()
         # Each collider's pose at the n_sub + 1 substep boundaries, computed once a step.
         poses = [_poses(c, n_sub) for c in self.colliders]
-        for s in range(n_sub):
+        for s in range(n_sub if self.count else 0):
             _predict(self.x, self.v, self._p, self._prev, GRAVITY[2], h_sub)
             self._wall.fill(np.inf)
             if cfg.wall_density:
@@ -522,8 +568,22 @@ class PBFluid:
                         rot[s + 1],
                         trans[s + 1],
                     )
-            _sort_cells(self._p, self.h, self._table, self._order, self._start)
-            _find_neighbours(self._p, self.h, self._order, self._start, self._nbr, self._nbr_count)
+            lo, cell, dims = self._grid(self._p)
+            _sort_cells(
+                self._p, lo, cell, dims, self._table, self._order, self._start, self._sorted
+            )
+            _find_neighbours(
+                self._p,
+                self._sorted,
+                self.h,
+                lo,
+                cell,
+                dims,
+                self._order,
+                self._start,
+                self._nbr,
+                self._nbr_count,
+            )
             _solve_density(
                 self._p,
                 self._nbr,
@@ -568,6 +628,10 @@ class PBFluid:
                 h_sub,
                 cfg.xsph,
             )
+            if self.floor is not None and cfg.floor_friction > 0.0:
+                # Water on a table comes to rest instead of gliding away forever.
+                on = self.x[:, 2] < self.floor + cfg.radius + 1e-6
+                self.v[on, :2] *= np.exp(-cfg.floor_friction * h_sub)
         for c in self.colliders:
             c.prev_rotation, c.prev_translation = c.rotation.copy(), c.translation.copy()
         if not np.isfinite(self.x).all():
