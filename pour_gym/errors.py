@@ -7,3 +7,7 @@ names the problem and the fix. The command line prints such messages without a t
 
 class InputError(ValueError):
     """Bad input from a user: the message says what is wrong and how to fix it."""
+
+
+class SimulationError(RuntimeError):
+    """The simulation reached a state it must not carry on from (a particle in a wall)."""

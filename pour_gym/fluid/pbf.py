@@ -62,10 +62,10 @@ class PBFConfig:
     relaxation: float = 0.01
     scorr_k: float = 0.02
     scorr_dq: float = 0.2
-    xsph: float = 0.01
+    xsph: float = 0.05
     max_travel: float = 1.5
     tension: float = 0.0
-    over_relaxation: float = 1.0
+    over_relaxation: float = 1.5
     wall_density: bool = True
     floor_friction: float = 20.0
 
@@ -166,7 +166,7 @@ def _sort_cells(p, lo, cell, dims, table, order, start, sorted_p):
     start[0] = 0
 
 
-@nb.njit(parallel=True, cache=True, fastmath=True)
+@nb.njit(parallel=True, cache=True)
 def _find_neighbours(p, sorted_p, h, lo, cell, dims, order, start, nbr, nbr_count):
     """Each particle's neighbours within h (<= the cell size), from the sorted cells."""
     n = p.shape[0]
@@ -196,7 +196,7 @@ def _find_neighbours(p, sorted_p, h, lo, cell, dims, order, start, nbr, nbr_coun
         nbr_count[i] = c
 
 
-@nb.njit(parallel=True, cache=True, fastmath=True)
+@nb.njit(parallel=True, cache=True)
 def _solve_density(
     p,
     nbr,
@@ -290,18 +290,41 @@ def _solve_density(
 
 
 @nb.njit(parallel=True, cache=True)
+def _limit_travel(p, x_prev, limit):
+    """Shorten every displacement of the substep to at most ``limit`` (a CFL bound).
+
+    The substep count is chosen from the speeds at the start of a step; pressure can still
+    accelerate a particle within the step, and a particle that crossed more than a wall's
+    thickness in one substep could pass through it unseen.
+    """
+    for i in nb.prange(p.shape[0]):
+        dx = p[i, 0] - x_prev[i, 0]
+        dy = p[i, 1] - x_prev[i, 1]
+        dz = p[i, 2] - x_prev[i, 2]
+        d = np.sqrt(dx * dx + dy * dy + dz * dz)
+        if d > limit:
+            f = limit / d
+            p[i, 0] = x_prev[i, 0] + f * dx
+            p[i, 1] = x_prev[i, 1] + f * dy
+            p[i, 2] = x_prev[i, 2] + f * dz
+
+
+@nb.njit(parallel=True, cache=True)
 def _collide(p, x_prev, radius, values, origin, spacing, rot, trans, prev_rot, prev_trans):
     """Push particles out of one container's material, in the container's frame.
 
     The particle's start-of-substep position is taken into the container's previous pose,
     its end into the current one: if the straight path between them crosses the middle of
     the wall (the distance changes sign along it) the particle is put back on the side it
-    came from, so a fast particle cannot tunnel through a thin wall.
+    came from, so a fast particle cannot tunnel through a thin wall. The push along the
+    field's gradient is repeated, because one push out of a corner can land near the other
+    wall of the corner.
     """
     n = p.shape[0]
     for i in nb.prange(n):
         q = np.empty(3)
         q0 = np.empty(3)
+        qm = np.empty(3)
         grad = np.empty(3)
         for a in range(3):
             q[a] = (
@@ -317,29 +340,33 @@ def _collide(p, x_prev, radius, values, origin, spacing, rot, trans, prev_rot, p
         d = sample_sdf(values, origin, spacing, q, grad)
         if d >= radius:
             continue
-        d0 = sample_sdf(values, origin, spacing, q0, np.empty(3))
+        d0 = sample_sdf(values, origin, spacing, q0, qm)
         if d0 > 0.0 and d < -0.25 * radius:
             # Crossed into the wall from outside: march back along the path to the surface.
             lo, hi = 0.0, 1.0
             for _ in range(20):
                 mid = 0.5 * (lo + hi)
-                qm = q0 + mid * (q - q0)
-                if sample_sdf(values, origin, spacing, qm, np.empty(3)) > radius:
+                for a in range(3):
+                    qm[a] = q0[a] + mid * (q[a] - q0[a])
+                if sample_sdf(values, origin, spacing, qm, grad) > radius:
                     lo = mid
                 else:
                     hi = mid
             for a in range(3):
                 q[a] = q0[a] + lo * (q[a] - q0[a])
             d = sample_sdf(values, origin, spacing, q, grad)
-        if d < radius:
+        for _ in range(3):
+            if d >= radius:
+                break
             push = radius - d
             for a in range(3):
                 q[a] += push * grad[a]
+            d = sample_sdf(values, origin, spacing, q, grad)
         for a in range(3):
             p[i, a] = rot[a, 0] * q[0] + rot[a, 1] * q[1] + rot[a, 2] * q[2] + trans[a]
 
 
-@nb.njit(parallel=True, cache=True, fastmath=True)
+@nb.njit(parallel=True, cache=True)
 def _finish(x, v, vn, p, nbr, nbr_count, h, dt, xsph):
     """Velocities from the displacement, XSPH-smoothed; positions take the prediction.
 
@@ -395,6 +422,23 @@ def _wall_distance(p, out, values, origin, spacing, rot, trans):
         d = sample_sdf(values, origin, spacing, q, np.empty(3))
         if d < out[i]:
             out[i] = d
+
+
+def wall_distance(
+    points: np.ndarray, sdf: SignedDistanceField, rotation: np.ndarray, translation: np.ndarray
+) -> np.ndarray:
+    """Signed distance (N,) of world points to a posed container's material, m."""
+    out = np.full(len(points), np.inf)
+    _wall_distance(
+        np.ascontiguousarray(points, dtype=np.float64),
+        out,
+        sdf.values,
+        sdf.origin,
+        sdf.spacing,
+        np.ascontiguousarray(rotation, dtype=np.float64),
+        np.ascontiguousarray(translation, dtype=np.float64),
+    )
+    return out
 
 
 @dataclass
@@ -545,11 +589,15 @@ class PBFluid:
                 f"the fluid diverged: a particle moves at {speed:.3g} m/s (limit {MAX_SPEED})"
             )
         limit = cfg.max_travel * cfg.radius
-        n_sub = max(int(np.ceil(dt / cfg.substep)), int(np.ceil(speed * dt / limit)), 1)
-        h_sub = dt / n_sub
         for c in self.colliders:
             if c.prev_rotation is None:
                 c.prev_rotation, c.prev_translation = c.rotation.copy(), c.translation.copy()
+        # A wall moves no farther than a particle may in one substep, either.
+        wall = max((_collider_travel(c) for c in self.colliders), default=0.0)
+        n_sub = max(
+            int(np.ceil(dt / cfg.substep)), int(np.ceil(max(speed * dt, wall) / limit)), 1
+        )
+        h_sub = dt / n_sub
         # Each collider's pose at the n_sub + 1 substep boundaries, computed once a step.
         poses = [_poses(c, n_sub) for c in self.colliders]
         for s in range(n_sub if self.count else 0):
@@ -601,6 +649,7 @@ class PBFluid:
                 self._wall,
                 self._wall_table,
             )
+            _limit_travel(self._p, self._prev, limit)
             for c, (rot, trans) in zip(self.colliders, poses, strict=True):
                 _collide(
                     self._p,
@@ -638,6 +687,18 @@ class PBFluid:
             raise FloatingPointError("the fluid diverged: a particle position is NaN or infinite")
         self.time += dt
         return n_sub
+
+
+def _collider_travel(collider: Collider) -> float:
+    """Farthest any point of the collider's field moves from its previous pose, m."""
+    field = collider.sdf
+    corners = field.origin + field.spacing * (
+        np.array(np.meshgrid([0, 1], [0, 1], [0, 1], indexing="ij")).reshape(3, -1).T
+        * (np.array(field.values.shape) - 1)
+    )
+    before = corners @ collider.prev_rotation.T + collider.prev_translation
+    after = corners @ collider.rotation.T + collider.translation
+    return float(np.linalg.norm(after - before, axis=1).max())
 
 
 def _poses(collider: Collider, n_sub: int) -> tuple[np.ndarray, np.ndarray]:

@@ -38,19 +38,18 @@ class SignedDistanceField:
 
     def sample(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Signed distance (N,) and its gradient (N, 3) at mesh-frame points."""
-        p = np.ascontiguousarray(points, dtype=np.float64)
+        p = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
         dist = np.empty(len(p))
         grad = np.empty((len(p), 3))
-        for i in range(len(p)):
-            dist[i] = sample_sdf(self.values, self.origin, self.spacing, p[i], grad[i])
+        _sample_many(self.values, self.origin, self.spacing, p, dist, grad)
         return dist, grad
 
 
-def _mesh_key(mesh: trimesh.Trimesh, spacing: float, margin: float) -> str:
+def _mesh_key(mesh: trimesh.Trimesh, *params: float) -> str:
     h = hashlib.sha256()
     h.update(np.ascontiguousarray(mesh.vertices, dtype=np.float64).tobytes())
     h.update(np.ascontiguousarray(mesh.faces, dtype=np.int64).tobytes())
-    h.update(np.array([spacing, margin]).tobytes())
+    h.update(np.array(params, dtype=np.float64).tobytes())
     return h.hexdigest()[:16]
 
 
@@ -59,30 +58,36 @@ def build_sdf(
     spacing: float = 1e-3,
     margin: float = 0.02,
     cache_dir: str | Path | None = None,
+    min_wall: float = 3e-3,
 ) -> SignedDistanceField:
-    """Compute (or load from the cache) the signed distance field of a closed mesh.
+    """Compute (or load from the cache) the signed distance field of a container mesh.
+
+    A watertight mesh's material is its inside. A scanned mesh that is not watertight
+    (small holes, a wall thinner than the grid) takes its sign from ray parity, and every
+    surface is additionally thickened to a wall of ``min_wall``, so that the fluid meets a
+    wall wherever the mesh has a surface.
 
     Args:
-        mesh: a watertight mesh, in m.
+        mesh: the container, in m.
         spacing: grid spacing, in m (below half the wall thickness, so that the field
             resolves the wall).
         margin: the grid extends this far beyond the mesh's bounds, in m.
         cache_dir: folder for ``sdf_<hash>.npz`` files; ``None`` disables caching.
+        min_wall: wall thickness given to the surfaces of a mesh that is not watertight, m.
 
     Returns:
         The field.
 
     Raises:
-        InputError: the mesh is not watertight (its inside is undefined).
+        InputError: an empty mesh.
     """
-    if not mesh.is_watertight:
-        raise InputError(
-            "a signed distance field needs a watertight mesh; repair it or reconstruct it "
-            "from a scan (pour-gym reconstruct)"
-        )
+    if len(mesh.faces) == 0:
+        raise InputError("the mesh has no faces; a container needs a surface")
+    closed = bool(mesh.is_watertight)
     path = None
     if cache_dir is not None:
-        path = Path(cache_dir) / f"sdf_{_mesh_key(mesh, spacing, margin)}.npz"
+        key = _mesh_key(mesh, spacing, margin, 0.0 if closed else min_wall)
+        path = Path(cache_dir) / f"sdf_{key}.npz"
         if path.is_file():
             data = np.load(path)
             return SignedDistanceField(data["values"], data["origin"], float(data["spacing"]))
@@ -98,10 +103,12 @@ def build_sdf(
         o3d.core.Tensor(np.asarray(mesh.faces, dtype=np.uint32)),
     )
     # open3d's sign is negative inside the closed surface, which here is the material.
-    values = scene.compute_signed_distance(o3d.core.Tensor(grid.astype(np.float32)), nsamples=3)
-    field = SignedDistanceField(
-        values.numpy().astype(np.float64).reshape(shape), origin, float(spacing)
-    )
+    query = o3d.core.Tensor(grid.astype(np.float32))
+    values = scene.compute_signed_distance(query, nsamples=3).numpy().astype(np.float64)
+    if not closed:
+        shell = scene.compute_distance(query).numpy().astype(np.float64) - 0.5 * min_wall
+        values = np.minimum(values, shell)
+    field = SignedDistanceField(values.reshape(shape), origin, float(spacing))
     if path is not None:
         path.parent.mkdir(parents=True, exist_ok=True)
         np.savez_compressed(path, values=field.values, origin=origin, spacing=spacing)
@@ -165,3 +172,9 @@ def sample_sdf(values, origin, spacing, p, grad):
     else:
         grad[0], grad[1], grad[2] = 0.0, 0.0, 1.0
     return d + extra
+
+
+@nb.njit(cache=True)
+def _sample_many(values, origin, spacing, points, dist, grad):
+    for i in range(points.shape[0]):
+        dist[i] = sample_sdf(values, origin, spacing, points[i], grad[i])
