@@ -347,9 +347,11 @@ def cmd_bench(args: argparse.Namespace) -> Output:
     )
 
     if args.what == "fluid":
-        sizes = [int(s) for s in (args.sizes or "1000,2000,4000,16000").split(",")]
-        result = bench_fluid(sizes, repeats=args.repeats)
-        return (result, lambda: fluid_table(result))
+        sizes = [int(s) for s in (args.sizes or "300,1000,2000,4000,16000").split(",")]
+        bullet = [int(s) for s in args.bullet_sizes.split(",") if s]
+        result = bench_fluid(sizes, bullet, repeats=args.repeats)
+        doc = {k: result[k] for k in ("pbf", "bullet", "ratio_at_2000")}
+        return (doc, lambda: fluid_table(result))
     if args.what == "label":
         sizes = [int(s) for s in (args.sizes or "5000,10000,20000,40000").split(",")]
         rows = bench_label(sizes, repeats=args.repeats)
@@ -429,7 +431,12 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = add("bench", cmd_bench, "benchmarks (medians of repeated runs)")
     p.add_argument("what", choices=["reconstruct", "label", "fluid"])
-    p.add_argument("--sizes", help="comma-separated sizes (points or target vertices)")
+    p.add_argument("--sizes", help="comma-separated sizes (points, target vertices or particles)")
+    p.add_argument(
+        "--bullet-sizes",
+        default="300,2000",
+        help="fluid: particle counts for the rigid-sphere backend ('' for none)",
+    )
     p.add_argument("--repeats", type=int, default=3)
 
     p = add("demo", cmd_demo, "rebuild a thesis object from a scan; write mesh, PNG, JSON")

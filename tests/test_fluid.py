@@ -140,7 +140,7 @@ def test_pour_onset_angle(cup_sdf, fill):
     cfg = PBFConfig()
     depth = HEIGHT - BASE
     h = fill * depth
-    count = int(round(np.pi * R_IN**2 * h / cfg.particle_volume))
+    count = round(np.pi * R_IN**2 * h / cfg.particle_volume)
     pts = column(cfg.spacing, depth)
     pts = pts[np.lexsort((pts[:, 1], pts[:, 0], pts[:, 2]))][:count]
     fluid = PBFluid(pts, cfg)

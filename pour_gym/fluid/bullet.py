@@ -134,7 +134,7 @@ class BulletFluid:
         Raises:
             FloatingPointError: a sphere's position became NaN or it flies off.
         """
-        n_sub = max(int(round(dt / self.config.substep)), 1)
+        n_sub = max(round(dt / self.config.substep), 1) if dt > 0 else 0
         for c in self.colliders:
             if c.prev_rotation is None:
                 c.prev_rotation, c.prev_translation = c.rotation.copy(), c.translation.copy()

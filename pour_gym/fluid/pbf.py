@@ -23,6 +23,8 @@ from scipy.spatial.transform import Rotation, Slerp
 from pour_gym.fluid.sdf import SignedDistanceField, sample_sdf
 
 GRAVITY = np.array([0.0, 0.0, -9.81])
+# Particles per parallel work item in loops that need scratch vectors.
+CHUNK = 64
 # Cells of the neighbour grid, at most (about 16 MB of cell starts).
 MAX_CELLS = 2_000_000
 # Water poured from a table-top cup never moves this fast; a particle that does has diverged.
@@ -166,7 +168,7 @@ def _sort_cells(p, lo, cell, dims, table, order, start, sorted_p):
     start[0] = 0
 
 
-@nb.njit(parallel=True, cache=True)
+@nb.njit(parallel=True, cache=True, fastmath=True)
 def _find_neighbours(p, sorted_p, h, lo, cell, dims, order, start, nbr, nbr_count):
     """Each particle's neighbours within h (<= the cell size), from the sorted cells."""
     n = p.shape[0]
@@ -196,7 +198,7 @@ def _find_neighbours(p, sorted_p, h, lo, cell, dims, order, start, nbr, nbr_coun
         nbr_count[i] = c
 
 
-@nb.njit(parallel=True, cache=True)
+@nb.njit(parallel=True, cache=True, fastmath=True)
 def _solve_density(
     p,
     nbr,
@@ -289,7 +291,7 @@ def _solve_density(
             p[i, 2] += omega * delta[i, 2]
 
 
-@nb.njit(parallel=True, cache=True)
+@nb.njit(parallel=True, cache=True, fastmath=True)
 def _limit_travel(p, x_prev, limit):
     """Shorten every displacement of the substep to at most ``limit`` (a CFL bound).
 
@@ -309,7 +311,7 @@ def _limit_travel(p, x_prev, limit):
             p[i, 2] = x_prev[i, 2] + f * dz
 
 
-@nb.njit(parallel=True, cache=True)
+@nb.njit(parallel=True, cache=True, fastmath=True)
 def _collide(p, x_prev, radius, values, origin, spacing, rot, trans, prev_rot, prev_trans):
     """Push particles out of one container's material, in the container's frame.
 
@@ -321,52 +323,79 @@ def _collide(p, x_prev, radius, values, origin, spacing, rot, trans, prev_rot, p
     wall of the corner.
     """
     n = p.shape[0]
-    for i in nb.prange(n):
+    # Scratch vectors per chunk of particles: an allocation per particle costs as much as
+    # the collision test itself.
+    for chunk in nb.prange((n + CHUNK - 1) // CHUNK):
         q = np.empty(3)
         q0 = np.empty(3)
         qm = np.empty(3)
         grad = np.empty(3)
+        for i in range(chunk * CHUNK, min(n, (chunk + 1) * CHUNK)):
+            _collide_one(
+                p,
+                x_prev,
+                i,
+                radius,
+                values,
+                origin,
+                spacing,
+                rot,
+                trans,
+                prev_rot,
+                prev_trans,
+                q,
+                q0,
+                qm,
+                grad,
+            )
+
+
+@nb.njit(cache=True, fastmath=True)
+def _collide_one(
+    p, x_prev, i, radius, values, origin, spacing, rot, trans, prev_rot, prev_trans, q, q0, qm, grad
+):
+    """:func:`_collide` for particle i, with scratch vectors q, q0, qm, grad."""
+    for a in range(3):
+        q[a] = (
+            rot[0, a] * (p[i, 0] - trans[0])
+            + rot[1, a] * (p[i, 1] - trans[1])
+            + rot[2, a] * (p[i, 2] - trans[2])
+        )
+        q0[a] = (
+            prev_rot[0, a] * (x_prev[i, 0] - prev_trans[0])
+            + prev_rot[1, a] * (x_prev[i, 1] - prev_trans[1])
+            + prev_rot[2, a] * (x_prev[i, 2] - prev_trans[2])
+        )
+    d = sample_sdf(values, origin, spacing, q, grad)
+    if d >= radius:
+        return
+    d0 = sample_sdf(values, origin, spacing, q0, qm)
+    if d0 > 0.0 and d < -0.25 * radius:
+        # Crossed into the wall from outside: march back along the path to the surface.
+        lo, hi = 0.0, 1.0
+        for _ in range(20):
+            mid = 0.5 * (lo + hi)
+            for a in range(3):
+                qm[a] = q0[a] + mid * (q[a] - q0[a])
+            if sample_sdf(values, origin, spacing, qm, grad) > radius:
+                lo = mid
+            else:
+                hi = mid
         for a in range(3):
-            q[a] = (
-                rot[0, a] * (p[i, 0] - trans[0])
-                + rot[1, a] * (p[i, 1] - trans[1])
-                + rot[2, a] * (p[i, 2] - trans[2])
-            )
-            q0[a] = (
-                prev_rot[0, a] * (x_prev[i, 0] - prev_trans[0])
-                + prev_rot[1, a] * (x_prev[i, 1] - prev_trans[1])
-                + prev_rot[2, a] * (x_prev[i, 2] - prev_trans[2])
-            )
+            q[a] = q0[a] + lo * (q[a] - q0[a])
         d = sample_sdf(values, origin, spacing, q, grad)
+    for _ in range(3):
         if d >= radius:
-            continue
-        d0 = sample_sdf(values, origin, spacing, q0, qm)
-        if d0 > 0.0 and d < -0.25 * radius:
-            # Crossed into the wall from outside: march back along the path to the surface.
-            lo, hi = 0.0, 1.0
-            for _ in range(20):
-                mid = 0.5 * (lo + hi)
-                for a in range(3):
-                    qm[a] = q0[a] + mid * (q[a] - q0[a])
-                if sample_sdf(values, origin, spacing, qm, grad) > radius:
-                    lo = mid
-                else:
-                    hi = mid
-            for a in range(3):
-                q[a] = q0[a] + lo * (q[a] - q0[a])
-            d = sample_sdf(values, origin, spacing, q, grad)
-        for _ in range(3):
-            if d >= radius:
-                break
-            push = radius - d
-            for a in range(3):
-                q[a] += push * grad[a]
-            d = sample_sdf(values, origin, spacing, q, grad)
+            break
+        push = radius - d
         for a in range(3):
-            p[i, a] = rot[a, 0] * q[0] + rot[a, 1] * q[1] + rot[a, 2] * q[2] + trans[a]
+            q[a] += push * grad[a]
+        d = sample_sdf(values, origin, spacing, q, grad)
+    for a in range(3):
+        p[i, a] = rot[a, 0] * q[0] + rot[a, 1] * q[1] + rot[a, 2] * q[2] + trans[a]
 
 
-@nb.njit(parallel=True, cache=True)
+@nb.njit(parallel=True, cache=True, fastmath=True)
 def _finish(x, v, vn, p, nbr, nbr_count, h, dt, xsph):
     """Velocities from the displacement, XSPH-smoothed; positions take the prediction.
 
@@ -398,7 +427,7 @@ def _finish(x, v, vn, p, nbr, nbr_count, h, dt, xsph):
             x[i, a] = p[i, a]
 
 
-@nb.njit(parallel=True, cache=True)
+@nb.njit(parallel=True, cache=True, fastmath=True)
 def _predict(x, v, p, prev, gz, dt):
     """Gravity on the velocities, then predicted positions; keeps the start positions."""
     for i in nb.prange(x.shape[0]):
@@ -408,20 +437,23 @@ def _predict(x, v, p, prev, gz, dt):
             p[i, a] = x[i, a] + v[i, a] * dt
 
 
-@nb.njit(parallel=True, cache=True)
+@nb.njit(parallel=True, cache=True, fastmath=True)
 def _wall_distance(p, out, values, origin, spacing, rot, trans):
     """out[i] = min(out[i], signed distance of particle i to one container's material)."""
-    for i in nb.prange(p.shape[0]):
+    n = p.shape[0]
+    for chunk in nb.prange((n + CHUNK - 1) // CHUNK):
         q = np.empty(3)
-        for a in range(3):
-            q[a] = (
-                rot[0, a] * (p[i, 0] - trans[0])
-                + rot[1, a] * (p[i, 1] - trans[1])
-                + rot[2, a] * (p[i, 2] - trans[2])
-            )
-        d = sample_sdf(values, origin, spacing, q, np.empty(3))
-        if d < out[i]:
-            out[i] = d
+        grad = np.empty(3)
+        for i in range(chunk * CHUNK, min(n, (chunk + 1) * CHUNK)):
+            for a in range(3):
+                q[a] = (
+                    rot[0, a] * (p[i, 0] - trans[0])
+                    + rot[1, a] * (p[i, 1] - trans[1])
+                    + rot[2, a] * (p[i, 2] - trans[2])
+                )
+            d = sample_sdf(values, origin, spacing, q, grad)
+            if d < out[i]:
+                out[i] = d
 
 
 def wall_distance(
@@ -594,9 +626,7 @@ class PBFluid:
                 c.prev_rotation, c.prev_translation = c.rotation.copy(), c.translation.copy()
         # A wall moves no farther than a particle may in one substep, either.
         wall = max((_collider_travel(c) for c in self.colliders), default=0.0)
-        n_sub = max(
-            int(np.ceil(dt / cfg.substep)), int(np.ceil(max(speed * dt, wall) / limit)), 1
-        )
+        n_sub = max(int(np.ceil(dt / cfg.substep)), int(np.ceil(max(speed * dt, wall) / limit)), 1)
         h_sub = dt / n_sub
         # Each collider's pose at the n_sub + 1 substep boundaries, computed once a step.
         poses = [_poses(c, n_sub) for c in self.colliders]

@@ -40,7 +40,7 @@ class Camera:
     far: float = 3.0
 
     def matrices(self) -> tuple[list[float], list[float]]:
-        """pybullet's view and projection matrices (column-major, 16 floats each)."""
+        """Pybullet's view and projection matrices (column-major, 16 floats each)."""
         view = pybullet.computeViewMatrixFromYawPitchRoll(
             list(self.target), self.distance, self.yaw, self.pitch, 0.0, 2
         )

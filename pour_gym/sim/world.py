@@ -56,6 +56,34 @@ def as_rotation(rotation) -> np.ndarray:
     return r
 
 
+def mesh_body(client, mesh, position, rotation, color) -> int:
+    """A static pybullet body (concave triangle mesh) with the mesh as its visual too.
+
+    Args:
+        client: a pybullet client.
+        mesh: the trimesh, in m, in the body's frame.
+        position: (3,) body position, m.
+        rotation: (3, 3) body rotation.
+        color: RGBA.
+
+    Returns:
+        The body's id; move it with ``resetBasePositionAndOrientation``.
+    """
+    verts = np.asarray(mesh.vertices, dtype=np.float64).tolist()
+    faces = np.asarray(mesh.faces, dtype=np.int64).ravel().tolist()
+    shape = client.createCollisionShape(
+        pybullet.GEOM_MESH,
+        vertices=verts,
+        indices=faces,
+        flags=pybullet.GEOM_FORCE_CONCAVE_TRIMESH,
+    )
+    visual = client.createVisualShape(
+        pybullet.GEOM_MESH, vertices=verts, indices=faces, rgbaColor=color
+    )
+    quat = Rotation.from_matrix(rotation).as_quat().tolist()
+    return client.createMultiBody(0.0, shape, visual, np.asarray(position).tolist(), quat)
+
+
 @dataclass
 class Container:
     """A container in the world.
@@ -119,7 +147,9 @@ class World:
         if table:
             shape = self.client.createCollisionShape(pybullet.GEOM_PLANE)
             visual = self.client.createVisualShape(
-                pybullet.GEOM_BOX, halfExtents=[0.5, 0.5, 0.005], rgbaColor=TABLE_COLOR,
+                pybullet.GEOM_BOX,
+                halfExtents=[0.5, 0.5, 0.005],
+                rgbaColor=TABLE_COLOR,
                 visualFramePosition=[0.0, 0.0, -0.005],
             )
             self.client.createMultiBody(0.0, shape, visual)
@@ -155,22 +185,13 @@ class World:
             asset = load_asset(asset)
         sdf = build_sdf(asset.mesh, SDF_SPACING, SDF_MARGIN, cache_dir=self.sdf_cache)
         rot, pos = as_rotation(rotation), np.asarray(position, dtype=np.float64)
-        verts = np.asarray(asset.mesh.vertices, dtype=np.float64)
-        faces = np.asarray(asset.mesh.faces, dtype=np.int64).ravel().tolist()
-        shape = self.client.createCollisionShape(
-            pybullet.GEOM_MESH,
-            vertices=verts.tolist(),
-            indices=faces,
-            flags=pybullet.GEOM_FORCE_CONCAVE_TRIMESH,
+        body = mesh_body(
+            self.client,
+            asset.mesh,
+            pos,
+            rot,
+            color or CUP_COLORS[len(self.containers) % len(CUP_COLORS)],
         )
-        visual = self.client.createVisualShape(
-            pybullet.GEOM_MESH,
-            vertices=verts.tolist(),
-            indices=faces,
-            rgbaColor=color or CUP_COLORS[len(self.containers) % len(CUP_COLORS)],
-        )
-        quat = Rotation.from_matrix(rot).as_quat().tolist()
-        body = self.client.createMultiBody(0.0, shape, visual, pos.tolist(), quat)
         if isinstance(self.fluid, PBFluid):
             collider = self.fluid.add_collider(sdf, rot, pos)
         else:
@@ -227,7 +248,7 @@ class World:
         """
         if (volume is None) == (particles is None):
             raise InputError("give the fill as a volume in m^3 or as a particle count, not both")
-        count = int(round(volume / self.particle_volume)) if volume is not None else particles
+        count = round(volume / self.particle_volume) if volume is not None else particles
         if count < 0:
             raise InputError(f"a fill cannot be negative ({count} particles)")
         local = fill_lattice(container.asset.geometry, container.sdf, self.config.spacing, count)
@@ -247,10 +268,15 @@ class World:
             for c in self.containers:
                 quat = Rotation.from_matrix(c.rotation).as_quat().tolist()
                 self.client.resetBasePositionAndOrientation(c.body, c.translation.tolist(), quat)
-        self._check_walls()
+        self.check_walls()
         return n_sub
 
-    def _check_walls(self) -> None:
+    def check_walls(self) -> None:
+        """Raise if a particle's centre lies in a container's material (done every step).
+
+        Raises:
+            SimulationError: naming the particle, the container and the depth.
+        """
         x = self.fluid.x
         if not len(x) or not self.containers:
             return
@@ -278,7 +304,8 @@ class World:
     def render(self, camera: Camera | None = None) -> np.ndarray:
         """An RGB picture (height, width, 3) uint8 of the world and its particles."""
         self._check_open()
-        return render(self.client, camera or Camera(), self.fluid.x, DRAWN_RADIUS * self.config.spacing)
+        radius = DRAWN_RADIUS * self.config.spacing
+        return render(self.client, camera or Camera(), self.fluid.x, radius)
 
     def close(self) -> None:
         """Disconnect the pybullet client; safe to call twice."""
@@ -293,5 +320,5 @@ class World:
     def __del__(self):
         try:
             self.close()
-        except Exception:  # noqa: BLE001 - interpreter shutdown may have torn pybullet down
+        except Exception:
             pass
