@@ -225,8 +225,9 @@ def bench_fluid(
     from pybullet_utils.bullet_client import BulletClient
     from scipy.spatial.transform import Rotation
 
+    from pour_gym.cache import cache_dir
     from pour_gym.fluid import PBFConfig, PBFluid, build_sdf
-    from pour_gym.fluid.bullet import BulletFluid
+    from pour_gym.fluid.bullet import BulletFluid, convex_parts
     from pour_gym.sim.world import mesh_body
 
     cfg = PBFConfig()
@@ -244,7 +245,8 @@ def bench_fluid(
         else:
             client = BulletClient(connection_mode=pybullet.DIRECT)
             client.createMultiBody(0.0, client.createCollisionShape(pybullet.GEOM_PLANE))
-            body = mesh_body(client, mesh, np.zeros(3), np.eye(3), (1.0, 1.0, 1.0, 1.0))
+            convex = convex_parts(client, mesh, cache_dir("sdf"))
+            body = mesh_body(client, mesh, np.zeros(3), np.eye(3), (1.0, 1.0, 1.0, 1.0), convex)
             fluid = BulletFluid(client, pts, cfg)
             cup = fluid.add_collider(body)
         clock = [0.0]

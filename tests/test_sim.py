@@ -125,3 +125,14 @@ def test_bad_arguments_are_refused(world):
     world.close()  # twice is fine
     with pytest.raises(RuntimeError, match="closed"):
         world.step(1 / 60)
+
+
+@pytest.mark.parametrize("fluid", ["pbf", "bullet"])
+def test_scripted_pour_lands_in_the_target(fluid):
+    from pour_gym.sim.scenes import PourScript, scripted_pour
+
+    n = 300
+    out = scripted_pour("red_cup", "broad_cup", n, fluid=fluid, script=PourScript(), fps=2)
+    assert out.source + out.target + out.elsewhere == n
+    assert out.target >= 0.95 * n
+    assert len(out.frames) == 12 and out.frames[0].shape == (360, 480, 3)

@@ -7,6 +7,11 @@ the containers' triangle meshes (static concave bodies posed kinematically at ev
 substep) and with the table. Like the SPH extension of bullet the thesis used, this fluid
 has no pressure: it behaves like marbles, which is what the cross-check is for.
 
+The containers collide as compounds of convex pieces (pybullet's V-HACD decomposition,
+cached on disk): spheres pressed against a bare triangle mesh sink through its one-sided
+surfaces (measured: 3.9 mm deep into a 3.5 mm wall, most of 300 spheres lost on a pour),
+while a convex piece pushes them back out of its volume.
+
 The sphere world is tuned as bullet3's own many-spheres examples are: a contact breaking
 threshold of a fraction of the sphere radius (the 0.02 m default makes every sphere keep
 contacts with all spheres within 2 cm, which makes a pile of a thousand 20 times slower).
@@ -14,13 +19,50 @@ contacts with all spheres within 2 cm, which makes a pile of a thousand 20 times
 
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 import pybullet
+import trimesh
 from scipy.spatial.transform import Rotation
 
 from pour_gym.fluid.pbf import GRAVITY, MAX_SPEED, PBFConfig
+
+
+def convex_parts(client, mesh: trimesh.Trimesh, cache_dir: str | Path) -> Path:
+    """A V-HACD convex decomposition of a mesh as an OBJ file (cached by the mesh's hash).
+
+    Args:
+        client: a pybullet client (V-HACD runs inside pybullet).
+        mesh: the container, in m.
+        cache_dir: folder for ``vhacd_<hash>.obj``.
+
+    Returns:
+        The OBJ file, one object per convex piece, for ``createCollisionShape(fileName=)``.
+    """
+    h = hashlib.sha256()
+    h.update(np.ascontiguousarray(mesh.vertices, dtype=np.float64).tobytes())
+    h.update(np.ascontiguousarray(mesh.faces, dtype=np.int64).tobytes())
+    out = Path(cache_dir) / f"vhacd_{h.hexdigest()[:16]}.obj"
+    if not out.is_file():
+        out.parent.mkdir(parents=True, exist_ok=True)
+        source = out.with_suffix(".in.obj")
+        mesh.export(source)
+        # Fine voxels and a low concavity keep thin walls as their own pieces.
+        client.vhacd(
+            str(source),
+            str(out),
+            str(out.with_suffix(".log")),
+            resolution=200000,
+            concavity=0.0005,
+            maxNumVerticesPerCH=64,
+            planeDownsampling=2,
+            convexhullDownsampling=2,
+        )
+        source.unlink()
+    return out
 
 
 @dataclass

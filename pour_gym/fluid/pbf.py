@@ -614,6 +614,8 @@ class PBFluid:
         Raises:
             FloatingPointError: a particle position became NaN or infinite.
         """
+        if dt <= 0.0:
+            raise ValueError(f"a step takes a positive time, not {dt} s")
         cfg = self.config
         speed = float(np.sqrt((self.v**2).sum(axis=1).max())) if len(self.v) else 0.0
         if not np.isfinite(speed) or speed > MAX_SPEED:

@@ -26,7 +26,7 @@ from scipy.spatial.transform import Rotation
 from pour_gym.assets import LabelledAsset, load_asset
 from pour_gym.cache import cache_dir
 from pour_gym.errors import InputError, SimulationError
-from pour_gym.fluid.bullet import BodyCollider, BulletFluid
+from pour_gym.fluid.bullet import BodyCollider, BulletFluid, convex_parts
 from pour_gym.fluid.pbf import Collider, PBFConfig, PBFluid, wall_distance
 from pour_gym.fluid.sdf import SignedDistanceField, build_sdf
 from pour_gym.sim.camera import Camera, render
@@ -56,8 +56,8 @@ def as_rotation(rotation) -> np.ndarray:
     return r
 
 
-def mesh_body(client, mesh, position, rotation, color) -> int:
-    """A static pybullet body (concave triangle mesh) with the mesh as its visual too.
+def mesh_body(client, mesh, position, rotation, color, convex: Path | None = None) -> int:
+    """A static pybullet body with the mesh as its visual.
 
     Args:
         client: a pybullet client.
@@ -65,18 +65,23 @@ def mesh_body(client, mesh, position, rotation, color) -> int:
         position: (3,) body position, m.
         rotation: (3, 3) body rotation.
         color: RGBA.
+        convex: an OBJ of convex pieces to collide as (see
+            :func:`pour_gym.fluid.bullet.convex_parts`); the concave triangle mesh if None.
 
     Returns:
         The body's id; move it with ``resetBasePositionAndOrientation``.
     """
     verts = np.asarray(mesh.vertices, dtype=np.float64).tolist()
     faces = np.asarray(mesh.faces, dtype=np.int64).ravel().tolist()
-    shape = client.createCollisionShape(
-        pybullet.GEOM_MESH,
-        vertices=verts,
-        indices=faces,
-        flags=pybullet.GEOM_FORCE_CONCAVE_TRIMESH,
-    )
+    if convex is not None:
+        shape = client.createCollisionShape(pybullet.GEOM_MESH, fileName=str(convex))
+    else:
+        shape = client.createCollisionShape(
+            pybullet.GEOM_MESH,
+            vertices=verts,
+            indices=faces,
+            flags=pybullet.GEOM_FORCE_CONCAVE_TRIMESH,
+        )
     visual = client.createVisualShape(
         pybullet.GEOM_MESH, vertices=verts, indices=faces, rgbaColor=color
     )
@@ -125,7 +130,8 @@ class World:
         config: fluid parameters (spacing, solver); the defaults look like water at cup
             scale.
         table: put a table (a plane at z = 0) under everything.
-        sdf_cache: folder for the containers' fields (default: the user cache).
+        sdf_cache: folder for the containers' fields and convex decompositions (default:
+            the user cache).
     """
 
     def __init__(
@@ -185,12 +191,16 @@ class World:
             asset = load_asset(asset)
         sdf = build_sdf(asset.mesh, SDF_SPACING, SDF_MARGIN, cache_dir=self.sdf_cache)
         rot, pos = as_rotation(rotation), np.asarray(position, dtype=np.float64)
+        convex = None
+        if isinstance(self.fluid, BulletFluid):
+            convex = convex_parts(self.client, asset.mesh, self.sdf_cache)
         body = mesh_body(
             self.client,
             asset.mesh,
             pos,
             rot,
             color or CUP_COLORS[len(self.containers) % len(CUP_COLORS)],
+            convex,
         )
         if isinstance(self.fluid, PBFluid):
             collider = self.fluid.add_collider(sdf, rot, pos)
@@ -214,6 +224,18 @@ class World:
             raise InputError(f"a container position is 3 finite numbers, got {position!r}")
         container.collider.rotation = as_rotation(rotation)
         container.collider.translation = pos
+
+    def teleport(self, container: Container, position, rotation=None) -> None:
+        """Put a container at a pose at once (no sweep through the fluid in between).
+
+        For setting a scene up; during a simulation use :meth:`set_pose`, which moves the
+        container smoothly over the next step.
+        """
+        self.set_pose(container, position, rotation)
+        c = container.collider
+        c.prev_rotation, c.prev_translation = c.rotation.copy(), c.translation.copy()
+        quat = Rotation.from_matrix(c.rotation).as_quat().tolist()
+        self.client.resetBasePositionAndOrientation(container.body, c.translation.tolist(), quat)
 
     # ------------------------------------------------------------------ fluid
     @property
@@ -280,8 +302,12 @@ class World:
         x = self.fluid.x
         if not len(x) or not self.containers:
             return
-        # Sphere centres of the reference backend may graze a wall; PBF projects them out.
-        tolerance = 0.0 if isinstance(self.fluid, PBFluid) else -self.config.radius
+        # PBF projects particles a radius out of the walls, one container after the other
+        # (a push out of one can graze another by a hair); the spheres of the reference
+        # backend sink into walls by their contact softness. A particle counts as inside a
+        # wall when its centre is deeper than that.
+        r = self.config.radius
+        tolerance = -0.25 * r if isinstance(self.fluid, PBFluid) else -r
         for c in self.containers:
             d = wall_distance(x, c.sdf, c.rotation, c.translation)
             if d.min() < tolerance:
