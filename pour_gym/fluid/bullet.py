@@ -65,7 +65,7 @@ def convex_parts(client, mesh: trimesh.Trimesh, cache_dir: str | Path) -> Path:
     return out
 
 
-@dataclass
+@dataclass(eq=False)  # identity: two containers may be equal in every field
 class BodyCollider:
     """A container body the spheres collide with, and its pose (world = R q + t)."""
 

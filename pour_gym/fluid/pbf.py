@@ -473,7 +473,7 @@ def wall_distance(
     return out
 
 
-@dataclass
+@dataclass(eq=False)  # identity: two containers may be equal in every field
 class Collider:
     """A container the fluid collides with: its field and its pose (world = R q + t)."""
 

@@ -56,7 +56,21 @@ def as_rotation(rotation) -> np.ndarray:
     return r
 
 
-def mesh_body(client, mesh, position, rotation, color, convex: Path | None = None) -> int:
+def container_field(asset: LabelledAsset, cache: str | Path | None = None) -> SignedDistanceField:
+    """The signed-distance field a world gives a container (computed once, then cached).
+
+    Args:
+        asset: the container.
+        cache: folder of cached fields (default: the user cache).
+    """
+    return build_sdf(
+        asset.mesh, SDF_SPACING, SDF_MARGIN, cache_dir=cache if cache else cache_dir("sdf")
+    )
+
+
+def mesh_body(
+    client, mesh, position, rotation, color, convex: Path | None = None, collide: bool = True
+) -> int:
     """A static pybullet body with the mesh as its visual.
 
     Args:
@@ -67,13 +81,17 @@ def mesh_body(client, mesh, position, rotation, color, convex: Path | None = Non
         color: RGBA.
         convex: an OBJ of convex pieces to collide as (see
             :func:`pour_gym.fluid.bullet.convex_parts`); the concave triangle mesh if None.
+        collide: give the body a collision shape at all (the PBF fluid collides through
+            fields, so its worlds skip the cost of building one).
 
     Returns:
         The body's id; move it with ``resetBasePositionAndOrientation``.
     """
     verts = np.asarray(mesh.vertices, dtype=np.float64).tolist()
     faces = np.asarray(mesh.faces, dtype=np.int64).ravel().tolist()
-    if convex is not None:
+    if not collide:
+        shape = -1
+    elif convex is not None:
         shape = client.createCollisionShape(pybullet.GEOM_MESH, fileName=str(convex))
     else:
         shape = client.createCollisionShape(
@@ -89,7 +107,7 @@ def mesh_body(client, mesh, position, rotation, color, convex: Path | None = Non
     return client.createMultiBody(0.0, shape, visual, np.asarray(position).tolist(), quat)
 
 
-@dataclass
+@dataclass(eq=False)  # identity: two containers may be equal in every field
 class Container:
     """A container in the world.
 
@@ -175,6 +193,7 @@ class World:
         position=(0.0, 0.0, 0.0),
         rotation=None,
         color: tuple[float, float, float, float] | None = None,
+        sdf: SignedDistanceField | None = None,
     ) -> Container:
         """Place a container.
 
@@ -183,13 +202,15 @@ class World:
             position: (3,) where the container's frame origin (its base) goes, m.
             rotation: a 3x3 matrix or an (x, y, z, w) quaternion; upright if None.
             color: RGBA for pictures.
+            sdf: the asset's field if already at hand (see :func:`container_field`).
 
         Returns:
             The container; move it with :meth:`set_pose`.
         """
         if not isinstance(asset, LabelledAsset):
             asset = load_asset(asset)
-        sdf = build_sdf(asset.mesh, SDF_SPACING, SDF_MARGIN, cache_dir=self.sdf_cache)
+        if sdf is None:
+            sdf = container_field(asset, self.sdf_cache)
         rot, pos = as_rotation(rotation), np.asarray(position, dtype=np.float64)
         convex = None
         if isinstance(self.fluid, BulletFluid):
@@ -201,6 +222,7 @@ class World:
             rot,
             color or CUP_COLORS[len(self.containers) % len(CUP_COLORS)],
             convex,
+            collide=convex is not None,
         )
         if isinstance(self.fluid, PBFluid):
             collider = self.fluid.add_collider(sdf, rot, pos)
@@ -210,6 +232,14 @@ class World:
         c = Container(len(self.containers), asset, body, sdf, collider)
         self.containers.append(c)
         return c
+
+    def remove_container(self, container: Container) -> None:
+        """Take a container out of the world (the others are renumbered in order)."""
+        self.client.removeBody(container.body)
+        self.fluid.colliders.remove(container.collider)
+        self.containers.remove(container)
+        for k, c in enumerate(self.containers):
+            c.index = k
 
     def set_pose(self, container: Container, position, rotation=None) -> None:
         """Where a container will be at the end of the next step (it moves there smoothly).
@@ -255,6 +285,10 @@ class World:
     def remove_particles(self, mask: np.ndarray) -> None:
         """Remove the particles where ``mask`` is true (the others keep their order)."""
         self.fluid.remove(mask)
+
+    def clear_particles(self) -> None:
+        """Remove all particles."""
+        self.fluid.remove(np.ones(self.fluid.count, dtype=bool))
 
     def spawn_block(self, low, high) -> np.ndarray:
         """Fill the box ``[low, high]`` (world, m) with particles; returns their indices."""
