@@ -8,7 +8,7 @@ signed-distance field) and swapped in and out of the world as episodes ask for t
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import gymnasium as gym
 import numpy as np
@@ -29,7 +29,7 @@ class PourGymEnv(gym.Env):
     :meth:`_setup` from their ``__init__``.
     """
 
-    metadata = {"render_modes": RENDER_MODES, "render_fps": 10}
+    metadata: ClassVar[dict] = {"render_modes": RENDER_MODES, "render_fps": 10}
 
     def _setup(
         self,

@@ -200,8 +200,13 @@ class PourEnv(PourGymEnv):
         if not 1 <= int(amount) <= self.fill:
             raise ValueError(f"target_amount must be in [1, {self.fill}] particles, not {amount}")
         self.target_amount = int(amount)
-        self.tolerance = max(5, int(round(0.1 * self.target_amount)))
+        self.tolerance = max(5, round(0.1 * self.target_amount))
         self.world.fill(self.source, particles=self.fill)
+        # The camera looks across the way from the source to the target.
+        mid = 0.5 * (self.lip + self.target_pos)
+        self.camera = Camera(
+            target=(float(mid[0]), float(mid[1]), 0.1), distance=0.5, yaw=0.0, pitch=-20.0
+        )
         self._poured_any = False
         self._counts = self._count()
         self._prev = self._counts
@@ -233,9 +238,7 @@ class PourEnv(PourGymEnv):
             self._poured_any = True
         settled = c["in_flight"] == 0
         upright = self.tilt < UPRIGHT_DEG
-        terminated = bool(
-            settled and ((self._poured_any and upright) or c["in_source"] == 0)
-        )
+        terminated = bool(settled and ((self._poured_any and upright) or c["in_source"] == 0))
         success = terminated and self._succeeded()
         if success:
             terms["success"] = 1.0
@@ -335,6 +338,7 @@ class PourEnv(PourGymEnv):
             "target_amount": self.target_amount,
             "target_ml": self.target_amount * v_ml,
             "tolerance": self.tolerance,
+            "fill": self.fill,
             **c,
             "poured_ml": c["poured"] * v_ml,
             "tilt_deg": self.tilt,

@@ -16,3 +16,6 @@ small dataclasses):
 """
 
 __version__ = "0.1.0"
+
+# Importing the package registers the PourGym/ environments with Gymnasium.
+import pour_gym.envs  # noqa: F401

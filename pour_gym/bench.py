@@ -228,7 +228,7 @@ def bench_fluid(
     from pour_gym.cache import cache_dir
     from pour_gym.fluid import PBFConfig, PBFluid, build_sdf
     from pour_gym.fluid.bullet import BulletFluid, convex_parts
-    from pour_gym.sim.world import mesh_body
+    from pour_gym.sim.world import mesh_body, quiet_c_stdout
 
     cfg = PBFConfig()
     cases = [("pbf", n) for n in sizes] + [("bullet", n) for n in bullet_sizes]
@@ -243,7 +243,8 @@ def bench_fluid(
             fluid = PBFluid(pts, cfg)
             cup = fluid.add_collider(build_sdf(mesh, spacing=0.001))
         else:
-            client = BulletClient(connection_mode=pybullet.DIRECT)
+            with quiet_c_stdout():
+                client = BulletClient(connection_mode=pybullet.DIRECT)
             client.createMultiBody(0.0, client.createCollisionShape(pybullet.GEOM_PLANE))
             convex = convex_parts(client, mesh, cache_dir("sdf"))
             body = mesh_body(client, mesh, np.zeros(3), np.eye(3), (1.0, 1.0, 1.0, 1.0), convex)
@@ -303,4 +304,100 @@ def fluid_table(result: dict) -> str:
     ]
     if result.get("ratio_at_2000"):
         lines.append(f"\npbf / bullet at 2000 particles: {result['ratio_at_2000']:.1f}x")
+    return "\n".join(lines)
+
+
+def _env_rate(make, vector: str | None, steps: int, seed: int = 0) -> float:
+    """Environment steps per second (all sub-environments together) over ``steps`` steps."""
+    import time
+
+    import gymnasium as gym
+
+    if vector is None:
+        env = make()
+    elif vector == "sync":
+        env = gym.vector.SyncVectorEnv([make, make])
+    else:
+        import os
+
+        # Spawned workers (numba's OpenMP threads do not survive fork()), each with its
+        # share of the cores: two workers of two threads on two cores fight for them.
+        threads = os.environ.get("NUMBA_NUM_THREADS")
+        os.environ["NUMBA_NUM_THREADS"] = str(max(1, (os.cpu_count() or 2) // 2))
+        try:
+            env = gym.vector.AsyncVectorEnv([make, make], context="spawn")
+        finally:
+            if threads is None:
+                os.environ.pop("NUMBA_NUM_THREADS")
+            else:
+                os.environ["NUMBA_NUM_THREADS"] = threads
+    n = 1 if vector is None else 2
+    env.reset(seed=seed)
+    env.action_space.seed(seed)
+    env.step(env.action_space.sample())  # warm-up: assets, fields and kernels loaded
+    t = time.perf_counter()
+    for _ in range(steps):
+        _, _, terminated, truncated, _ = env.step(env.action_space.sample())
+        if vector is None and (terminated or truncated):
+            env.reset()
+    rate = steps * n / (time.perf_counter() - t)
+    env.close()
+    return rate
+
+
+def bench_envs(steps: dict[str, int] | None = None, repeats: int = 3) -> dict:
+    """Steps per second of every environment at its defaults, alone and vectorised by 2.
+
+    Random actions; one-step environments count an episode per step. Pour-v0 also reports
+    simulated seconds per wall second (a step is 0.1 s).
+
+    Args:
+        steps: steps per timed run by environment id (defaults: 100 for Pour-v0, 60 for
+            the one-step environments).
+        repeats: timed runs per case; the median is reported.
+
+    Returns:
+        ``{"rows": [{"env", "mode", "steps_per_s", "realtime"}...]}``.
+    """
+    import functools
+
+    import gymnasium as gym
+
+    import pour_gym  # noqa: F401 - registers the environments
+    from pour_gym.envs import ENV_IDS
+
+    steps = steps or {}
+    rows = []
+    bar = tqdm(total=len(ENV_IDS) * 3 * repeats, desc="bench envs", file=sys.stderr)
+    for env_id in ENV_IDS:
+        n = steps.get(env_id, 100 if env_id == "PourGym/Pour-v0" else 60)
+        make = functools.partial(gym.make, env_id)
+        for mode in (None, "sync", "async"):
+            runs = []
+            for r in range(repeats):
+                runs.append(_env_rate(make, mode, n, seed=r))
+                bar.update()
+            rate = statistics.median(runs)
+            dt = gym.make(env_id).unwrapped.dt
+            rows.append(
+                {
+                    "env": env_id,
+                    "mode": mode or "single",
+                    "steps_per_s": rate,
+                    "realtime": rate * dt if env_id == "PourGym/Pour-v0" else None,
+                }
+            )
+    bar.close()
+    return {"rows": rows}
+
+
+def envs_table(result: dict) -> str:
+    """Markdown table of :func:`bench_envs`."""
+    lines = [
+        "| environment | mode | steps/s (median) | simulated s per wall s |",
+        "|---|---|---:|---:|",
+    ]
+    for r in result["rows"]:
+        rt = "" if r["realtime"] is None else f"{r['realtime']:.2f}"
+        lines.append(f"| {r['env']} | {r['mode']} | {r['steps_per_s']:.1f} | {rt} |")
     return "\n".join(lines)

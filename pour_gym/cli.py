@@ -338,9 +338,11 @@ def warping_tables(reports: dict[str, dict]) -> str:
 def cmd_bench(args: argparse.Namespace) -> Output:
     """Benchmarks."""
     from pour_gym.bench import (
+        bench_envs,
         bench_fluid,
         bench_label,
         bench_reconstruct,
+        envs_table,
         fluid_table,
         label_table,
         reconstruct_table,
@@ -352,6 +354,9 @@ def cmd_bench(args: argparse.Namespace) -> Output:
         result = bench_fluid(sizes, bullet, repeats=args.repeats)
         doc = {k: result[k] for k in ("pbf", "bullet", "ratio_at_2000")}
         return (doc, lambda: fluid_table(result))
+    if args.what == "envs":
+        result = bench_envs(repeats=args.repeats)
+        return (result, lambda: envs_table(result))
     if args.what == "label":
         sizes = [int(s) for s in (args.sizes or "5000,10000,20000,40000").split(",")]
         rows = bench_label(sizes, repeats=args.repeats)
@@ -410,10 +415,13 @@ def cmd_pour(args: argparse.Namespace) -> Output:
 
 def cmd_demo(args: argparse.Namespace) -> Output:
     """The main job: rebuild one thesis object from a simulated scan."""
-    from pour_gym.demo import run_demo
+    from pour_gym.demo import pour_episode, run_demo
 
     summary = run_demo(Path(args.out), args.object)
-    return (summary, lambda: summary["text"])
+    pour = pour_episode(Path(args.out))
+    summary["pour"] = {"info": pour["info"], "video": pour["video"]}
+    text = summary.pop("text") + "\n" + pour["text"]
+    return (summary, lambda: text)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -477,7 +485,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", help="folder (default: the packaged assets folder)")
 
     p = add("bench", cmd_bench, "benchmarks (medians of repeated runs)")
-    p.add_argument("what", choices=["reconstruct", "label", "fluid"])
+    p.add_argument("what", choices=["reconstruct", "label", "fluid", "envs"])
     p.add_argument("--sizes", help="comma-separated sizes (points, target vertices or particles)")
     p.add_argument(
         "--bullet-sizes",
@@ -495,7 +503,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--video", help="write the pour as .gif (or .mp4 with imageio-ffmpeg)")
     p.add_argument("--fps", type=int, default=20)
 
-    p = add("demo", cmd_demo, "rebuild a thesis object from a scan; write mesh, PNG, JSON")
+    p = add("demo", cmd_demo, "rebuild a thesis object from a scan, then pour with it (GIF)")
     p.add_argument("--out", default="demo_out")
     p.add_argument("--object", default="red_cup")
     return parser

@@ -222,3 +222,33 @@ def fluid_features(
     n_above = int(np.count_nonzero(inside & (np.asarray(points)[:, 2] > lip_z)))
     vc = geometry.cavity_volume
     return count_volume(n_in, particle_volume) / vc, count_volume(n_above, particle_volume) / vc
+
+
+def cavity_points(geometry: ContainerGeometry) -> np.ndarray:
+    """Centres of the cavity's water voxels, (M, 3), in the container's frame, m."""
+    cav = geometry.cavity
+    return cav.origin + cav.voxel * np.argwhere(cav.mask)
+
+
+def held_volume(
+    geometry: ContainerGeometry, rotation: np.ndarray, points: np.ndarray | None = None
+) -> float:
+    """Water a container holds at rest when tilted: its cavity below the lip, m^3.
+
+    In the quasi-static limit (a slow tilt) water fills the container up to a level
+    surface and runs over the lowest rim point: a fill pours at a rotation exactly when its
+    volume exceeds this. For a cylinder of radius R and depth H this is
+    ``pi R^2 (H - R tan(theta))`` while the water still covers the bottom.
+
+    Args:
+        geometry: the container's geometry.
+        rotation: (3, 3) container rotation (world = R @ local + t).
+        points: :func:`cavity_points` of the geometry, if already computed.
+
+    Returns:
+        The volume, m^3.
+    """
+    pts = cavity_points(geometry) if points is None else points
+    up = np.asarray(rotation)[2]  # world height of a local point, up to the translation
+    lip = float((geometry.rim_vertices @ up).min())
+    return float(np.count_nonzero(pts @ up < lip)) * geometry.cavity.voxel**3

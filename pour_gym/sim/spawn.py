@@ -45,9 +45,6 @@ def fill_lattice(
 ) -> np.ndarray:
     """The ``count`` lowest lattice points in an upright container's cavity, in its frame.
 
-    A point qualifies when it lies in the cavity voxels and at least half a spacing from
-    the container's material, so that no particle starts in a wall.
-
     Args:
         geometry: the container's geometry (its cavity voxels).
         sdf: the container's signed-distance field.
@@ -59,6 +56,32 @@ def fill_lattice(
 
     Raises:
         InputError: the cavity holds fewer than ``count`` lattice points.
+    """
+    candidates = cavity_lattice(geometry, sdf, spacing)
+    if len(candidates) < count:
+        raise InputError(
+            f"the container holds {len(candidates)} particles of spacing {spacing} m below its "
+            f"rim; {count} were asked for (lower the fill or the spacing)"
+        )
+    return candidates[:count]
+
+
+def cavity_lattice(
+    geometry: ContainerGeometry, sdf: SignedDistanceField, spacing: float
+) -> np.ndarray:
+    """All lattice points of an upright container's cavity, lowest first, in its frame.
+
+    A point qualifies when it lies in the cavity voxels and at least about half a spacing
+    from the container's material, so that no particle starts in a wall.
+
+    Args:
+        geometry: the container's geometry (its cavity voxels).
+        sdf: the container's signed-distance field.
+        spacing: lattice spacing, m.
+
+    Returns:
+        (M, 3) positions, layer by layer from the bottom; a partial top layer fills from
+        the axis outwards.
     """
     cav = geometry.cavity
     lo = cav.origin
@@ -77,12 +100,7 @@ def fill_lattice(
     candidates = candidates[inside]
     d, _ = sdf.sample(candidates)
     candidates = candidates[d >= 0.45 * spacing]
-    if len(candidates) < count:
-        raise InputError(
-            f"the container holds {len(candidates)} particles of spacing {spacing} m below its "
-            f"rim; {count} were asked for (lower the fill or the spacing)"
-        )
     # Layer by layer from the bottom; a partial top layer fills from the axis outwards.
     radial = np.round(np.hypot(*(candidates[:, :2] - geometry.rim_center[:2]).T) / spacing, 6)
     order = np.lexsort((candidates[:, 1], candidates[:, 0], radial, candidates[:, 2]))
-    return candidates[order[:count]]
+    return candidates[order]

@@ -15,6 +15,9 @@ material (:class:`~pour_gym.errors.SimulationError` otherwise) and that no posit
 
 from __future__ import annotations
 
+import os
+import sys
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -42,6 +45,25 @@ SDF_SPACING = 1e-3
 SDF_MARGIN = 0.012
 # Particles are drawn larger than their collision radius, so that they merge into water.
 DRAWN_RADIUS = 0.8
+
+
+@contextmanager
+def quiet_c_stdout():
+    """Silence what C code prints on file descriptor 1 (pybullet's connection banner).
+
+    The command line prints exactly one JSON document on stdout; pybullet writes
+    ``argv[0]=`` there on every connection.
+    """
+    sys.stdout.flush()
+    saved = os.dup(1)
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(devnull, 1)
+        yield
+    finally:
+        os.dup2(saved, 1)
+        os.close(saved)
+        os.close(devnull)
 
 
 def as_rotation(rotation) -> np.ndarray:
@@ -164,7 +186,8 @@ class World:
         self.fluid_kind = fluid
         self.config = config or PBFConfig()
         self.sdf_cache = Path(sdf_cache) if sdf_cache is not None else cache_dir("sdf")
-        self.client = BulletClient(connection_mode=pybullet.DIRECT)
+        with quiet_c_stdout():
+            self.client = BulletClient(connection_mode=pybullet.DIRECT)
         self.client.setGravity(0.0, 0.0, -9.81)
         self.containers: list[Container] = []
         self.table = table
@@ -214,7 +237,8 @@ class World:
         rot, pos = as_rotation(rotation), np.asarray(position, dtype=np.float64)
         convex = None
         if isinstance(self.fluid, BulletFluid):
-            convex = convex_parts(self.client, asset.mesh, self.sdf_cache)
+            with quiet_c_stdout():  # V-HACD reports its progress on stdout
+                convex = convex_parts(self.client, asset.mesh, self.sdf_cache)
         body = mesh_body(
             self.client,
             asset.mesh,

@@ -1,0 +1,215 @@
+"""PourGym/TiltPour-v0: will the container pour when tilted to this angle? (experiment 2)."""
+
+from __future__ import annotations
+
+import numpy as np
+from gymnasium import spaces
+from scipy.spatial.transform import Rotation
+
+from pour_gym.envs.base import PourGymEnv
+from pour_gym.features import cavity_points, held_volume, lip_point
+from pour_gym.fluid.pbf import PBFConfig
+from pour_gym.sim import Camera
+from pour_gym.sim.spawn import cavity_lattice
+
+LABEL_MODES = ("hydrostatic", "simulate")
+CORRECT, SPILL = 1.0, -2.0
+# Tilting is about the world y axis through the container's base, the top towards -x
+# (away from the handle, which the assets keep along +x).
+AXIS = np.array([0.0, -1.0, 0.0])
+TILT_TIME, HOLD_TIME = 6.0, 1.0  # s, for the simulated label
+
+
+class TiltPourEnv(PourGymEnv):
+    """Decide whether a filled container tilted slowly to an angle will pour (thesis exp. 2).
+
+    ## Description
+    A container is filled to a random fraction of its volume and tilted slowly about a
+    fixed horizontal axis to a random angle. The agent predicts in one step whether fluid
+    leaves it; the ground truth is in ``info["label"]``. As in the thesis, the feature f4
+    is computed from the fluid at rest upright, rotated with the container to the angle:
+    the fluid above the lip (the lowest rim vertex) over the container's volume.
+
+    ``label_mode="hydrostatic"`` (default) labels by the quasi-static limit the thesis's
+    "tilted slowly" describes: the fluid pours when its volume exceeds what the cavity
+    holds below the lip at that angle (the particle fluid agrees within 2 deg on the pour
+    onset of a cylinder, ``tests/test_fluid.py``). ``label_mode="simulate"`` tilts the
+    particle fluid over 6 s and holds 1 s, and labels by whether 2 or more particles left.
+
+    ## Action Space
+    ``Box(-1, 1, (1,))``: positive predicts that the container pours.
+
+    ## Observation Space
+    ``obs_mode="features"``: ``Box(0, 1, (1,))``, f4. ``obs_mode="state"``:
+    ``Box(-1, 2, (5,))``: the tilt angle (rad), the fill fraction and the container's
+    bounding-box size (in 10 cm).
+
+    ## Rewards
+    ``correct`` = +1 for a right prediction; ``spill`` = -2 for predicting no pour when it
+    pours; 0 for a false alarm. Terms in ``info``.
+
+    ## Starting State
+    A container from ``objects``; the fill uniform in ``fill_range`` (fraction of the
+    volume); the angle uniform in ``tilt_range`` (degrees).
+
+    ## Episode End
+    After the one step (terminated).
+
+    ## Arguments
+    ``objects``, ``obs_mode``, ``fluid``, ``fluid_config``, ``label_mode``, ``fill_range``,
+    ``tilt_range``, ``render_mode``. ``reset(options=...)`` accepts ``container``,
+    ``fill`` and ``tilt_deg``.
+
+    ## Version History
+    * v0: initial version.
+    """
+
+    def __init__(
+        self,
+        objects="train",
+        obs_mode: str = "features",
+        fluid: str = "pbf",
+        fluid_config: PBFConfig | dict | None = None,
+        label_mode: str = "hydrostatic",
+        fill_range: tuple[float, float] = (0.2, 0.9),
+        tilt_range: tuple[float, float] = (0.0, 90.0),
+        render_mode: str | None = None,
+    ):
+        self._init_kwargs = dict(
+            objects=objects,
+            obs_mode=obs_mode,
+            fluid=fluid,
+            fluid_config=fluid_config,
+            label_mode=label_mode,
+            fill_range=fill_range,
+            tilt_range=tilt_range,
+            render_mode=render_mode,
+        )
+        if obs_mode not in ("features", "state"):
+            raise ValueError(f"obs_mode must be 'features' or 'state', not {obs_mode!r}")
+        if label_mode not in LABEL_MODES:
+            raise ValueError(f"label_mode must be one of {LABEL_MODES}, not {label_mode!r}")
+        if not 0.0 < fill_range[0] <= fill_range[1] <= 1.0:
+            raise ValueError(f"fill_range must lie within (0, 1], not {fill_range}")
+        if not 0.0 <= tilt_range[0] <= tilt_range[1] <= 180.0:
+            raise ValueError(f"tilt_range must lie within [0, 180] degrees, not {tilt_range}")
+        self.containers = self._containers(objects)
+        self.obs_mode = obs_mode
+        self.label_mode = label_mode
+        self.fill_range = (float(fill_range[0]), float(fill_range[1]))
+        self.tilt_range = (float(tilt_range[0]), float(tilt_range[1]))
+        self.dt = TILT_TIME + HOLD_TIME
+        if obs_mode == "features":
+            self.obs_names = ("f4",)
+            self.observation_space = spaces.Box(0.0, 1.0, (1,), np.float32)
+        else:
+            self.obs_names = ("tilt_rad", "fill", "size_x", "size_y", "size_z")
+            self.observation_space = spaces.Box(-1.0, 4.0, (5,), np.float32)
+        self.action_space = spaces.Box(-1.0, 1.0, (1,), np.float32)
+        self._lattices: dict[str, np.ndarray] = {}
+        self._voxels: dict[str, np.ndarray] = {}
+        self._setup(fluid, fluid_config, render_mode, Camera(distance=0.4, pitch=-20.0))
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        """Choose container, fill and angle; ``options``: container, fill, tilt_deg."""
+        super().reset(seed=seed)
+        options = dict(options or {})
+        unknown = set(options) - {"container", "fill", "tilt_deg"}
+        if unknown:
+            raise ValueError(f"unknown reset options {sorted(unknown)}")
+        rng = self.np_random
+        self.name = self._choose(self.containers, options.get("container"))
+        asset, sdf = self._load(self.name)
+        if self.name not in self._lattices:
+            spacing = self.fluid_config.spacing
+            self._lattices[self.name] = cavity_lattice(asset.geometry, sdf, spacing)
+            self._voxels[self.name] = cavity_points(asset.geometry)
+        fill = options.get("fill")
+        fill = rng.uniform(*self.fill_range) if fill is None else float(fill)
+        if not 0.0 < fill <= 1.0:
+            raise ValueError(f"fill is a fraction of the volume in (0, 1], not {fill}")
+        tilt = options.get("tilt_deg")
+        tilt = rng.uniform(*self.tilt_range) if tilt is None else float(tilt)
+        if not (np.isfinite(tilt) and 0.0 <= tilt <= 180.0):
+            raise ValueError(f"tilt_deg must be in [0, 180], not {tilt}")
+        self.fill, self.tilt = fill, tilt
+        lattice = self._lattices[self.name]
+        g = asset.geometry
+        v = self.fluid_config.particle_volume
+        self.count = min(len(lattice), max(1, round(fill * g.cavity_volume / v)))
+        self.rest = lattice[: self.count]
+        self.rotation = Rotation.from_rotvec(np.radians(tilt) * AXIS).as_matrix()
+        self.asset = asset
+        self._world_ready = False
+        return self._observation(), self._info()
+
+    def f4(self) -> float:
+        """The fluid at rest upright, rotated with the container: above the lip / volume."""
+        g = self.asset.geometry
+        world = self.rest @ self.rotation.T
+        lip_z = lip_point(g, self.rotation, np.zeros(3))[2]
+        above = np.count_nonzero(world[:, 2] > lip_z)
+        return float(above * self.fluid_config.particle_volume / g.cavity_volume)
+
+    def step(self, action):
+        """Predict, then label the tilt (hydrostatically or by simulation) and score it."""
+        a = self._check_action(action)
+        predict = bool(a[0] > 0.0)
+        self.label = self._simulate() if self.label_mode == "simulate" else self._hydrostatic()
+        terms = {"correct": 0.0, "spill": 0.0}
+        if predict == self.label:
+            terms["correct"] = CORRECT
+        elif self.label:
+            terms["spill"] = SPILL
+        info = self._info()
+        info.update({f"reward_{k}": v for k, v in terms.items()})
+        info.update(label=self.label, predicted=predict, is_success=predict == self.label)
+        return self._observation(), float(sum(terms.values())), True, False, info
+
+    def _hydrostatic(self) -> bool:
+        volume = self.count * self.fluid_config.particle_volume
+        return volume > held_volume(self.asset.geometry, self.rotation, self._voxels[self.name])
+
+    def _simulate(self) -> bool:
+        container = self._place({"container": self.name})["container"]
+        world = self.world
+        world.teleport(container, np.zeros(3))
+        world.add_particles(container.to_world(self.rest))
+        for _ in range(30):  # settle
+            world.step(1.0 / 60.0)
+        steps = round(TILT_TIME * 60)
+        for k in range(steps + round(HOLD_TIME * 60)):
+            angle = self.tilt * min((k + 1) / steps, 1.0)
+            rot = Rotation.from_rotvec(np.radians(angle) * AXIS).as_matrix()
+            world.set_pose(container, np.zeros(3), rot)
+            world.step(1.0 / 60.0)
+        self._world_ready = True
+        return world.census().elsewhere >= 2
+
+    def render(self):
+        """The container at the episode's angle (with its fluid after a simulated label)."""
+        if self.render_mode is not None and not self._world_ready:
+            container = self._place({"container": self.name})["container"]
+            self.world.teleport(container, np.zeros(3), self.rotation)
+            self.world.add_particles(self.rest @ self.rotation.T)
+            self._world_ready = True
+        return super().render()
+
+    def _observation(self) -> np.ndarray:
+        if self.obs_mode == "features":
+            obs = np.array([self.f4()])
+        else:
+            size = np.ptp(self.asset.mesh.bounds, axis=0) / 0.1
+            obs = np.array([np.radians(self.tilt), self.fill, *size])
+        space = self.observation_space
+        return np.clip(obs, space.low, space.high).astype(np.float32)
+
+    def _info(self) -> dict:
+        return {
+            "container": self.name,
+            "fill": self.fill,
+            "tilt_deg": self.tilt,
+            "particles": self.count,
+            "features": [self.f4()],
+            "is_success": False,
+        }
