@@ -413,6 +413,22 @@ def cmd_pour(args: argparse.Namespace) -> Output:
     return (doc, lambda: text)
 
 
+def cmd_experiment(args: argparse.Namespace) -> Output:
+    """The thesis's experiments 1 and 2 with ROC curves."""
+    from pour_gym.agents.experiments import run_experiment
+
+    objects = None
+    if args.objects:
+        from pour_gym.assets import expand_containers
+
+        objects = expand_containers(
+            args.objects.split(",") if "," in args.objects else args.objects
+        )
+    doc = run_experiment(args.which, args.episodes, args.seed, Path(args.out), objects)
+    table = doc.pop("table")
+    return (doc, lambda: f"{table}\nwrote {doc['files']['png']} and results_{args.which}.json")
+
+
 def cmd_demo(args: argparse.Namespace) -> Output:
     """The main job: rebuild one thesis object from a simulated scan."""
     from pour_gym.demo import pour_episode, run_demo
@@ -502,6 +518,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--angle", type=float, default=110.0, help="largest tilt, degrees")
     p.add_argument("--video", help="write the pour as .gif (or .mp4 with imageio-ffmpeg)")
     p.add_argument("--fps", type=int, default=20)
+
+    p = add("experiment", cmd_experiment, "thesis experiments 1 (drop) and 2 (tilt), ROC curves")
+    p.add_argument("which", choices=["drop", "tilt"])
+    p.add_argument("--episodes", type=int, default=400, help="episodes per object")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--out", default="experiments", help="output folder")
+    p.add_argument("--objects", help="split or comma-separated containers (default: all nine)")
 
     p = add("demo", cmd_demo, "rebuild a thesis object from a scan, then pour with it (GIF)")
     p.add_argument("--out", default="demo_out")

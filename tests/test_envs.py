@@ -153,3 +153,17 @@ def test_scripted_policy_pours_the_amount(split):
     assert success >= 0.8, detail
     for r in results:  # every particle accounted for
         assert r["in_source"] + r["poured"] + r["in_flight"] + r["spilled"] == r["fill"]
+
+
+def test_experiments_at_tiny_size(tmp_path):
+    """Both thesis experiments run end to end and their numbers are sane."""
+    from pour_gym.agents.experiments import roc_curve, run_experiment
+
+    fpr, tpr = roc_curve(np.array([0.9, 0.8, 0.3, 0.1]), np.array([1, 1, 0, 0], bool))
+    assert fpr[0] == tpr[0] == 0.0 and fpr[-1] == tpr[-1] == 1.0
+    for which in ("tilt", "drop"):
+        doc = run_experiment(which, episodes=12, out=tmp_path, objects=("red_cup", "standard_cup"))
+        assert set(doc["auc"]) == {"red_cup", "standard_cup", "all"}
+        assert all(0.5 <= v <= 1.0 for v in doc["auc"].values())
+        assert (tmp_path / f"roc_{which}.png").stat().st_size > 10_000
+        assert (tmp_path / f"dataset_{which}.npz").is_file()

@@ -1,0 +1,238 @@
+"""The thesis's two experiments (5.2), with ROC curves per object.
+
+Experiment 1 (``drop``, ParticleDrop-v0): will fluid released here end up in the
+container? Features f1, f2, f3. Experiment 2 (``tilt``, TiltPour-v0): will the container
+pour when tilted to this angle? Feature f4. The classifier is the thesis's logistic
+regression fitted by Newton-Raphson (``pour_gym.warp.classifiers.LogisticRegression``),
+trained on the red cup alone and applied to each object and to all at once. The thesis's
+criterion is the true-positive rate at a false-positive rate of at most 1 % (pouring
+where fluid would spill must not happen).
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+from pour_gym.assets import SPLITS
+from pour_gym.errors import InputError
+from pour_gym.warp.classifiers import LogisticRegression
+
+EXPERIMENTS = {
+    "drop": ("PourGym/ParticleDrop-v0", ("f1", "f2", "f3")),
+    "tilt": ("PourGym/TiltPour-v0", ("f4",)),
+}
+TRAIN_OBJECT = "red_cup"
+MAX_FPR = 0.01
+
+
+@dataclass
+class Dataset:
+    """Features and labels of one experiment.
+
+    Attributes:
+        features: (N, M) features per episode.
+        labels: (N,) bool ground truth.
+        objects: (N,) container of each episode.
+    """
+
+    features: np.ndarray
+    labels: np.ndarray
+    objects: np.ndarray
+
+    def save(self, path: str | Path) -> Path:
+        """Write as ``.npz``."""
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        np.savez_compressed(
+            path, features=self.features, labels=self.labels, objects=self.objects.astype(str)
+        )
+        return path
+
+
+def collect(experiment: str, objects: tuple[str, ...], episodes: int, seed: int = 0) -> Dataset:
+    """Run the experiment's environment ``episodes`` times per object.
+
+    Args:
+        experiment: ``"drop"`` or ``"tilt"``.
+        objects: containers (catalogue names or mesh paths).
+        episodes: episodes per object.
+        seed: seed of the first episode (each episode has its own).
+
+    Returns:
+        The dataset, in the order of the objects.
+    """
+    import gymnasium as gym
+
+    import pour_gym  # noqa: F401 - registers the environments
+
+    env_id, _ = _spec(experiment)
+    feats, labels, names = [], [], []
+    bar = tqdm(total=len(objects) * episodes, desc=f"experiment {experiment}", file=sys.stderr)
+    for k, name in enumerate(objects):
+        env = gym.make(env_id, objects=[name])
+        for ep in range(episodes):
+            env.reset(seed=seed + k * episodes + ep)
+            _, _, _, _, info = env.step(np.zeros(1, dtype=np.float32))
+            feats.append(info["features"])
+            labels.append(info["label"])
+            names.append(name)
+            bar.update()
+        env.close()
+    bar.close()
+    return Dataset(np.asarray(feats, dtype=float), np.asarray(labels, bool), np.asarray(names))
+
+
+def roc_curve(scores: np.ndarray, labels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """False- and true-positive rates over all thresholds (descending scores).
+
+    Returns:
+        ``(fpr, tpr)``, each starting at 0 and ending at 1; ties share one point.
+    """
+    scores, labels = np.asarray(scores, float), np.asarray(labels, bool)
+    pos, neg = int(labels.sum()), int((~labels).sum())
+    if pos == 0 or neg == 0:
+        raise InputError("a ROC curve needs both positive and negative examples")
+    order = np.argsort(-scores, kind="stable")
+    s, y = scores[order], labels[order]
+    tp, fp = np.cumsum(y), np.cumsum(~y)
+    last = np.r_[np.nonzero(np.diff(s))[0], len(s) - 1]  # last index of each tie group
+    return np.r_[0.0, fp[last] / neg], np.r_[0.0, tp[last] / pos]
+
+
+def auc(fpr: np.ndarray, tpr: np.ndarray) -> float:
+    """Area under a ROC curve (trapezoids)."""
+    return float(np.trapezoid(tpr, fpr))
+
+
+def tpr_at_fpr(fpr: np.ndarray, tpr: np.ndarray, max_fpr: float = MAX_FPR) -> float:
+    """The best true-positive rate among thresholds with a false-positive rate <= max_fpr."""
+    ok = fpr <= max_fpr + 1e-12
+    return float(tpr[ok].max())
+
+
+def _spec(experiment: str) -> tuple[str, tuple[str, ...]]:
+    if experiment not in EXPERIMENTS:
+        raise InputError(f"unknown experiment {experiment!r}; use {' or '.join(EXPERIMENTS)}")
+    return EXPERIMENTS[experiment]
+
+
+def evaluate(data: Dataset, train_object: str = TRAIN_OBJECT) -> dict:
+    """Train on one object's episodes, score every object's and all of them together.
+
+    Returns:
+        ``{"auc": {obj: x, "all": x}, "tpr_at_fpr_0.01": {...}, "positives": {...},
+        "episodes": {...}, "classifier": {...}, "curves": {obj: (fpr, tpr)}}``.
+    """
+    train = data.objects == train_object
+    if not train.any():
+        raise InputError(f"no episodes of {train_object!r} to train on")
+    clf = LogisticRegression().fit(data.features[train], data.labels[train])
+    scores = clf.predict_proba(data.features)
+    out: dict = {"auc": {}, "tpr_at_fpr_0.01": {}, "positives": {}, "episodes": {}, "curves": {}}
+    groups = [(o, data.objects == o) for o in dict.fromkeys(data.objects.tolist())]
+    for name, mask in [*groups, ("all", np.ones(len(data.labels), bool))]:
+        fpr, tpr = roc_curve(scores[mask], data.labels[mask])
+        out["auc"][name] = auc(fpr, tpr)
+        out["tpr_at_fpr_0.01"][name] = tpr_at_fpr(fpr, tpr)
+        out["positives"][name] = float(data.labels[mask].mean())
+        out["episodes"][name] = int(mask.sum())
+        out["curves"][name] = (fpr, tpr)
+    out["classifier"] = clf.to_dict()
+    return out
+
+
+def plot_roc(result: dict, title: str, path: str | Path) -> Path:
+    """ROC curves of every object in one picture (like the thesis's figures 5.8, 5.10)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6.5, 5.5))
+    for name, (fpr, tpr) in result["curves"].items():
+        style = {"color": "black", "lw": 2.5} if name == "all" else {"lw": 1.2}
+        ax.step(fpr, tpr, where="post", label=f"{name} (AUC {result['auc'][name]:.3f})", **style)
+    ax.axvline(MAX_FPR, color="grey", ls=":", lw=1)
+    ax.set_xlabel("false-positive rate")
+    ax.set_ylabel("true-positive rate")
+    ax.set_title(title)
+    ax.set_xlim(0, 1)
+    ax.set_ylim(0, 1.01)
+    ax.legend(fontsize=7, loc="lower right")
+    fig.tight_layout()
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def markdown_table(result: dict) -> str:
+    """AUC and TPR at FPR <= 1 % per object."""
+    lines = [
+        "| object | episodes | positives | AUC | TPR at FPR <= 1 % |",
+        "|---|---:|---:|---:|---:|",
+    ]
+    for name in result["auc"]:
+        lines.append(
+            f"| {name} | {result['episodes'][name]} | {result['positives'][name]:.2f} | "
+            f"{result['auc'][name]:.3f} | {result['tpr_at_fpr_0.01'][name]:.3f} |"
+        )
+    return "\n".join(lines)
+
+
+def run_experiment(
+    experiment: str,
+    episodes: int = 400,
+    seed: int = 0,
+    out: str | Path = "experiments",
+    objects: tuple[str, ...] | None = None,
+) -> dict:
+    """Collect, train on the red cup, evaluate, and write dataset, PNG, JSON and table.
+
+    Args:
+        experiment: ``"drop"`` or ``"tilt"``.
+        episodes: episodes per object.
+        seed: first seed.
+        out: output folder.
+        objects: containers (default: the thesis's nine objects).
+
+    Returns:
+        The JSON document (``auc``, ``tpr_at_fpr_0.01``, ...) and the written paths.
+    """
+    _, names = _spec(experiment)
+    if episodes < 10:
+        raise InputError(f"--episodes must be at least 10 per object, not {episodes}")
+    objects = objects or SPLITS["all"]
+    data = collect(experiment, objects, episodes, seed)
+    result = evaluate(data)
+    out = Path(out)
+    title = {
+        "drop": "Experiment 1: will the fluid increase the volume? (f1, f2, f3)",
+        "tilt": "Experiment 2: will the container start to pour? (f4)",
+    }[experiment]
+    png = plot_roc(result, title, out / f"roc_{experiment}.png")
+    dataset = data.save(out / f"dataset_{experiment}.npz")
+    doc = {
+        "experiment": experiment,
+        "features": list(names),
+        "train_object": TRAIN_OBJECT,
+        "episodes_per_object": episodes,
+        "seed": seed,
+        "auc": result["auc"],
+        "tpr_at_fpr_0.01": result["tpr_at_fpr_0.01"],
+        "positives": result["positives"],
+        "classifier": result["classifier"],
+        "files": {"png": str(png), "dataset": str(dataset)},
+    }
+    (out / f"results_{experiment}.json").write_text(json.dumps(doc, indent=2) + "\n")
+    table = markdown_table(result)
+    (out / f"results_{experiment}.md").write_text(table + "\n")
+    doc["table"] = table
+    return doc
