@@ -293,7 +293,7 @@ def expand_containers(spec: str | Path | list | tuple) -> tuple[str, ...]:
 
     Args:
         spec: ``"train"``, ``"test"``, ``"all"``, ``"real"``, a catalogue name, an asset
-            directory, a mesh file, or a list or tuple of the last three.
+            directory, a mesh file, a comma-separated string or a list of the last three.
 
     Returns:
         The containers, in order, as strings.
@@ -305,7 +305,8 @@ def expand_containers(spec: str | Path | list | tuple) -> tuple[str, ...]:
         s = str(spec)
         if s in SPLITS:
             return SPLITS[s]
-        spec = [s]
+        # "a,b,c" lists containers (unless it is the name of an existing file).
+        spec = s.split(",") if "," in s and not Path(s).exists() else [s]
     items = tuple(str(x) for x in spec)
     if not items:
         raise InputError("no containers given; use a split (train, test, all, real) or names")

@@ -429,6 +429,68 @@ def cmd_experiment(args: argparse.Namespace) -> Output:
     return (doc, lambda: f"{table}\nwrote {doc['files']['png']} and results_{args.which}.json")
 
 
+def cmd_evaluate(args: argparse.Namespace) -> Output:
+    """Evaluate a trained model or the scripted policy on every container."""
+    from pour_gym.agents.evaluate import evaluate_policy, evaluation_table, sb3_policy
+    from pour_gym.assets import expand_containers
+
+    env_kwargs: dict = {}
+    trained: list[str] = []
+    reset = None
+    if args.policy == "scripted":
+        from pour_gym.agents.scripted import ScriptedPourPolicy
+
+        if args.env != "PourGym/Pour-v0":
+            raise InputError("the scripted policy pours: use --env PourGym/Pour-v0")
+        scripted = ScriptedPourPolicy()
+        policy, reset = scripted, scripted.reset
+    else:
+        model_path = Path(args.policy)
+        if not model_path.is_file():
+            raise InputError(f"no model file {args.policy!r} (or use 'scripted')")
+        config_path = model_path.parent / "config.json"
+        config = json.loads(config_path.read_text()) if config_path.is_file() else {}
+        from stable_baselines3 import PPO, SAC, TD3
+
+        algo = config.get("algo", args.algo)
+        if algo not in ("sac", "ppo", "td3"):
+            raise InputError("which algorithm made the model? pass --algo sac|ppo|td3")
+        model = {"sac": SAC, "ppo": PPO, "td3": TD3}[algo].load(model_path)
+        policy = sb3_policy(model)
+        env_kwargs = {
+            "obs_mode": config.get("obs_mode", "features"),
+            **config.get("env_kwargs", {}),
+        }
+        if config.get("env") and config["env"] != args.env:
+            raise InputError(f"the model was trained on {config['env']}, not {args.env}")
+        trained = list(expand_containers(config.get("objects", []) or "train"))
+    result = evaluate_policy(
+        policy,
+        args.env,
+        expand_containers(args.objects),
+        args.episodes,
+        env_kwargs=env_kwargs,
+        reset=reset,
+        trained_on=trained,
+    )
+    return (result, lambda: evaluation_table(result))
+
+
+def cmd_search(args: argparse.Namespace) -> Output:
+    """CMA-ES over the scripted policy's parameters."""
+    from pour_gym.agents.search import search
+
+    doc = search(
+        args.objects, args.generations, args.population, args.episodes, args.seed, args.out
+    )
+    text = (
+        f"mean return {doc['start_return']:.3f} at the hand-set parameters, "
+        f"{doc['best_return']:.3f} at the best found: "
+        + ", ".join(f"{k}={v:.3g}" for k, v in doc["best"].items())
+    )
+    return (doc, lambda: text)
+
+
 def cmd_demo(args: argparse.Namespace) -> Output:
     """The main job: rebuild one thesis object from a simulated scan."""
     from pour_gym.demo import pour_episode, run_demo
@@ -525,6 +587,21 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", default="experiments", help="output folder")
     p.add_argument("--objects", help="split or comma-separated containers (default: all nine)")
+
+    p = add("evaluate", cmd_evaluate, "success, amount error and spill per container")
+    p.add_argument("policy", help="an SB3 model.zip from train.py, or 'scripted'")
+    p.add_argument("--env", default="PourGym/Pour-v0")
+    p.add_argument("--objects", default="all", help="split or comma-separated containers")
+    p.add_argument("--episodes", type=int, default=5, help="episodes per container")
+    p.add_argument("--algo", help="algorithm, if the model has no config.json beside it")
+
+    p = add("search", cmd_search, "CMA-ES policy search over the scripted policy (Pour-v0)")
+    p.add_argument("--objects", default="train")
+    p.add_argument("--generations", type=int, default=6)
+    p.add_argument("--population", type=int, default=6)
+    p.add_argument("--episodes", type=int, default=3, help="episodes per candidate")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--out", help="folder for search.json")
 
     p = add("demo", cmd_demo, "rebuild a thesis object from a scan, then pour with it (GIF)")
     p.add_argument("--out", default="demo_out")

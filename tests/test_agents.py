@@ -1,0 +1,67 @@
+"""train.py, evaluation and policy search at tiny sizes: outputs exist and make sense."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from pour_gym.agents.evaluate import evaluate_policy
+from pour_gym.agents.search import search
+from pour_gym.agents.training import hyperparameters
+from pour_gym.errors import InputError
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_hyperparameters_cover_every_env_and_algo():
+    from pour_gym.envs import ENV_IDS
+
+    for env_id in ENV_IDS:
+        for algo in ("sac", "ppo", "td3"):
+            assert "policy" in hyperparameters(env_id, algo)
+    with pytest.raises(InputError, match="no hyperparameters"):
+        hyperparameters("PourGym/Juggle-v0", "sac")
+
+
+def test_train_py_trains_checkpoints_resumes_and_evaluates(tmp_path):
+    out = tmp_path / "run"
+    cmd = [
+        sys.executable,
+        str(ROOT / "train.py"),
+        "--env", "PourGym/TiltPour-v0",
+        "--algo", "ppo",
+        "--timesteps", "300",
+        "--eval-objects", "red_cup,standard_cup",
+        "--eval-episodes", "3",
+        "--out", str(out),
+        "--json",
+    ]  # fmt: skip
+    first = subprocess.run(cmd, capture_output=True, text=True, check=True)
+    doc = json.loads(first.stdout)
+    assert [r["object"] for r in doc["rows"]] == ["red_cup", "standard_cup"]
+    assert doc["rows"][0]["trained_on"] and not doc["rows"][1]["trained_on"]
+    assert all(0.0 <= r["success"] <= 1.0 for r in doc["rows"])
+    for name in ("model.zip", "config.json", "progress.csv", "eval.json", "eval.md"):
+        assert (out / name).is_file(), name
+    assert list((out / "checkpoints").glob("model_*_steps.zip"))
+    # The same command again resumes from the finished checkpoint: it only evaluates.
+    again = subprocess.run(cmd, capture_output=True, text=True, check=True)
+    assert json.loads(again.stdout)["rows"] == doc["rows"]
+    bad = subprocess.run([*cmd[:2], "--set", "oops"], capture_output=True, text=True)
+    assert bad.returncode == 2 and "key=value" in bad.stderr
+
+
+def test_evaluate_and_search_at_tiny_size():
+    from pour_gym.agents.scripted import ScriptedPourPolicy
+
+    policy = ScriptedPourPolicy()
+    small = {"source_particles": 300, "amount_range": (40, 80)}
+    result = evaluate_policy(policy, "PourGym/Pour-v0", ["red_cup"], 1, env_kwargs=small,
+                             reset=policy.reset)  # fmt: skip
+    row = result["rows"][0]
+    assert row["object"] == "red_cup" and row["amount_error"] is not None
+    doc = search("train", generations=1, population=2, episodes=1, env_kwargs=small)
+    assert set(doc["best"]) == {"lip_offset", "slow_rate", "lead", "flow"}
+    assert doc["best_return"] >= max(h["best"] for h in doc["history"]) - 1e-9
