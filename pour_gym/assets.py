@@ -307,7 +307,10 @@ def expand_containers(spec: str | Path | list | tuple) -> tuple[str, ...]:
             return SPLITS[s]
         # "a,b,c" lists containers (unless it is the name of an existing file).
         spec = s.split(",") if "," in s and not Path(s).exists() else [s]
-    items = tuple(str(x) for x in spec)
+    items: tuple[str, ...] = ()
+    for x in spec:  # a split inside a list stands for its containers
+        items += SPLITS.get(str(x), (str(x),))
+    items = tuple(dict.fromkeys(items))
     if not items:
         raise InputError("no containers given; use a split (train, test, all, real) or names")
     for item in items:

@@ -1,0 +1,14 @@
+#!/bin/sh
+# The generalisation study: PPO trained on the red cup alone, with the warped features
+# or with raw state, evaluated on the thesis's nine objects and the pybullet mug.
+# Run from the repository root after `make demo`; about 20 minutes on a 2-core machine.
+set -e
+PY=${PY:-.venv/bin/python}
+for ENV in ParticleDrop TiltPour; do
+  for MODE in features state; do
+    $PY train.py --env PourGym/$ENV-v0 --algo ppo --objects train --obs-mode $MODE \
+      --timesteps 20000 --seed 0 --eval-objects all,pybullet_mug --eval-episodes 100 \
+      --out runs/study/${ENV}_${MODE}
+  done
+done
+$PY -m pour_gym.cli report generalisation --runs runs/study --out docs/generalisation
