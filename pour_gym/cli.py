@@ -212,6 +212,13 @@ def cmd_report(args: argparse.Namespace) -> Output:
     from pour_gym.modelgen import generate_model
     from pour_gym.objects import OBJECT_NAMES
 
+    if args.what == "generalisation":
+        from pour_gym.agents.study import study_report
+
+        if not args.runs or not args.out:
+            raise InputError("report generalisation needs --runs DIR and --out DIR")
+        summary = study_report(args.runs, args.out)
+        return (summary, lambda: (Path(args.out) / "report.md").read_text())
     if args.what == "warping":
         from pour_gym.assets import label_container
 
@@ -548,7 +555,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--scale", type=float, default=1.0, help="mesh units to m")
 
     p = add("report", cmd_report, "tables beside the thesis's (scan + reconstruct all objects)")
-    p.add_argument("what", choices=["reconstruction", "warping"])
+    p.add_argument("what", choices=["reconstruction", "warping", "generalisation"])
+    p.add_argument("--runs", help="generalisation: folder of train.py runs")
+    p.add_argument("--out", help="generalisation: folder for report.md and plots")
 
     p = add("label", cmd_label, "label a container's parts by warping a labelled source (ch. 4)")
     p.add_argument("target", help="catalogue container or mesh file (any pose, any size in m)")
