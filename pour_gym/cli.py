@@ -498,6 +498,14 @@ def cmd_search(args: argparse.Namespace) -> Output:
     return (doc, lambda: text)
 
 
+def cmd_poc(args: argparse.Namespace) -> Output:
+    """The thesis's proof of concept, Table 6.1."""
+    from pour_gym.agents.poc import poc_table, run_poc
+
+    doc = run_poc(args.target, args.samples, args.seed, out=args.out)
+    return (doc, lambda: poc_table(doc))
+
+
 def cmd_demo(args: argparse.Namespace) -> Output:
     """The main job: rebuild one thesis object from a simulated scan."""
     from pour_gym.demo import pour_episode, run_demo
@@ -611,6 +619,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--episodes", type=int, default=3, help="episodes per candidate")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", help="folder for search.json")
+
+    p = add("poc", cmd_poc, "the thesis's proof-of-concept pouring policy (Table 6.1)")
+    p.add_argument("--target", type=int, default=20, help="particles to pour (0.125 ml each)")
+    p.add_argument("--samples", type=int, default=60, help="red-cup episodes to learn from")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--out", help="folder for poc_<target>.json")
 
     p = add("demo", cmd_demo, "rebuild a thesis object from a scan, then pour with it (GIF)")
     p.add_argument("--out", default="demo_out")
