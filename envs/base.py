@@ -20,6 +20,7 @@ from pour_gym.sim import Camera, Container, World
 from pour_gym.sim.world import FLUIDS, container_field
 
 RENDER_MODES = ["rgb_array", "human"]
+OBS_MODES = ("features", "state")
 
 
 class PourGymEnv(gym.Env):
@@ -52,6 +53,24 @@ class PourGymEnv(gym.Env):
         self._loaded: dict[str, tuple[LabelledAsset, SignedDistanceField]] = {}
         self._placed: dict[str, Container] = {}
         self._viewer = None
+
+    # ------------------------------------------------------------------ arguments
+    @staticmethod
+    def _check_obs_mode(obs_mode: str) -> str:
+        if obs_mode not in OBS_MODES:
+            raise ValueError(f"obs_mode must be one of {OBS_MODES}, not {obs_mode!r}")
+        return obs_mode
+
+    @staticmethod
+    def _options(options: dict | None, allowed: set[str]) -> dict:
+        """``reset`` options as a dict; ValueError naming any key not in ``allowed``."""
+        options = dict(options or {})
+        unknown = set(options) - allowed
+        if unknown:
+            raise ValueError(
+                f"unknown reset options {sorted(unknown)}; this environment takes {sorted(allowed)}"
+            )
+        return options
 
     # ------------------------------------------------------------------ containers
     @staticmethod

@@ -83,8 +83,7 @@ class ParticleDropEnv(PourGymEnv):
             drop_time=drop_time,
             render_mode=render_mode,
         )
-        if obs_mode not in ("features", "state"):
-            raise ValueError(f"obs_mode must be 'features' or 'state', not {obs_mode!r}")
+        self._check_obs_mode(obs_mode)
         if blob < 1:
             raise ValueError(f"blob must be at least 1 particle, not {blob}")
         if not 0.0 <= fill_range[0] <= fill_range[1] <= 0.8:
@@ -108,10 +107,7 @@ class ParticleDropEnv(PourGymEnv):
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         """Place the container and the fluid; ``options``: container, spawn, fill."""
         super().reset(seed=seed)
-        options = dict(options or {})
-        unknown = set(options) - {"container", "spawn", "fill"}
-        if unknown:
-            raise ValueError(f"unknown reset options {sorted(unknown)}")
+        options = self._options(options, {"container", "spawn", "fill"})
         name = self._choose(self.containers, options.get("container"))
         self.container = self._place({"container": name})["container"]
         self.world.teleport(self.container, np.zeros(3))

@@ -141,8 +141,7 @@ class PourEnv(PourGymEnv):
             max_tilt=max_tilt,
             render_mode=render_mode,
         )
-        if obs_mode not in ("features", "state"):
-            raise ValueError(f"obs_mode must be 'features' or 'state', not {obs_mode!r}")
+        self._check_obs_mode(obs_mode)
         if source_particles < 100:
             raise ValueError(f"source_particles must be at least 100, not {source_particles}")
         lo, hi = amount_range
@@ -168,10 +167,7 @@ class PourEnv(PourGymEnv):
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         """Start an episode; ``options`` may fix ``source``, ``target``, ``target_amount``."""
         super().reset(seed=seed)
-        options = dict(options or {})
-        unknown = set(options) - {"source", "target", "target_amount"}
-        if unknown:
-            raise ValueError(f"unknown reset options {sorted(unknown)}")
+        options = self._options(options, {"source", "target", "target_amount"})
         source = self._choose(self.sources, options.get("source"))
         target = self._choose(self.targets, options.get("target"))
         placed = self._place({"source": source, "target": target})

@@ -85,8 +85,7 @@ class TiltPourEnv(PourGymEnv):
             tilt_range=tilt_range,
             render_mode=render_mode,
         )
-        if obs_mode not in ("features", "state"):
-            raise ValueError(f"obs_mode must be 'features' or 'state', not {obs_mode!r}")
+        self._check_obs_mode(obs_mode)
         if label_mode not in LABEL_MODES:
             raise ValueError(f"label_mode must be one of {LABEL_MODES}, not {label_mode!r}")
         if not 0.0 < fill_range[0] <= fill_range[1] <= 1.0:
@@ -113,10 +112,7 @@ class TiltPourEnv(PourGymEnv):
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         """Choose container, fill and angle; ``options``: container, fill, tilt_deg."""
         super().reset(seed=seed)
-        options = dict(options or {})
-        unknown = set(options) - {"container", "fill", "tilt_deg"}
-        if unknown:
-            raise ValueError(f"unknown reset options {sorted(unknown)}")
+        options = self._options(options, {"container", "fill", "tilt_deg"})
         rng = self.np_random
         self.name = self._choose(self.containers, options.get("container"))
         asset, sdf = self._load(self.name)

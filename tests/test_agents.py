@@ -5,6 +5,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from pour_gym.agents.evaluate import evaluate_policy
@@ -65,3 +66,19 @@ def test_evaluate_and_search_at_tiny_size():
     doc = search("train", generations=1, population=2, episodes=1, env_kwargs=small)
     assert set(doc["best"]) == {"lip_offset", "slow_rate", "lead", "flow"}
     assert doc["best_return"] >= max(h["best"] for h in doc["history"]) - 1e-9
+
+
+def test_poc_at_tiny_size():
+    from pour_gym.agents.poc import KernelRegression, poc_table, run_poc
+
+    # The regression reproduces its samples where they are dense.
+    x = np.column_stack([np.linspace(0, 100, 50), np.linspace(0, 3, 50)])
+    y = 0.5 * x[:, 0] + 10 * x[:, 1]
+    model = KernelRegression(bandwidth=0.05).fit(x, y)
+    assert model.predict(x[20:21])[0] == pytest.approx(y[20], rel=0.05)
+    doc = run_poc(target=20, samples=3, objects=("red_cup",))
+    row = doc["rows"][0]
+    assert set(row) >= {"object", "delta_deg", "duration_s", "target", "outcome", "error",
+                        "inside", "outside"}  # fmt: skip
+    assert row["inside"] + row["outside"] == row["outcome"]
+    assert 0.0 <= row["delta_deg"] <= 120.0 and "thesis" in poc_table(doc)

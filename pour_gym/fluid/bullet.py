@@ -28,7 +28,7 @@ import pybullet
 import trimesh
 from scipy.spatial.transform import Rotation
 
-from pour_gym.fluid.pbf import GRAVITY, MAX_SPEED, PBFConfig
+from pour_gym.fluid.pbf import GRAVITY, MAX_SPEED, PBFConfig, PosedCollider, substep_poses
 
 
 def convex_parts(client, mesh: trimesh.Trimesh, cache_dir: str | Path) -> Path:
@@ -65,15 +65,11 @@ def convex_parts(client, mesh: trimesh.Trimesh, cache_dir: str | Path) -> Path:
     return out
 
 
-@dataclass(eq=False)  # identity: two containers may be equal in every field
-class BodyCollider:
-    """A container body the spheres collide with, and its pose (world = R q + t)."""
+@dataclass(eq=False, kw_only=True)
+class BodyCollider(PosedCollider):
+    """A container body the spheres collide with."""
 
     body: int
-    rotation: np.ndarray
-    translation: np.ndarray
-    prev_rotation: np.ndarray | None = None
-    prev_translation: np.ndarray | None = None
 
 
 class BulletFluid:
@@ -163,9 +159,11 @@ class BulletFluid:
     def add_collider(self, body: int, rotation=None, translation=None) -> BodyCollider:
         """Register a container body; its pose is set through the returned collider."""
         c = BodyCollider(
-            body,
-            np.eye(3) if rotation is None else np.asarray(rotation, dtype=np.float64),
-            np.zeros(3) if translation is None else np.asarray(translation, dtype=np.float64),
+            body=body,
+            rotation=np.eye(3) if rotation is None else np.asarray(rotation, dtype=np.float64),
+            translation=np.zeros(3)
+            if translation is None
+            else np.asarray(translation, dtype=np.float64),
         )
         self.colliders.append(c)
         return c
@@ -180,12 +178,11 @@ class BulletFluid:
         for c in self.colliders:
             if c.prev_rotation is None:
                 c.prev_rotation, c.prev_translation = c.rotation.copy(), c.translation.copy()
+        poses = [substep_poses(c, n_sub) for c in self.colliders]
         for s in range(n_sub):
-            f = (s + 1) / n_sub
-            for c in self.colliders:
-                self.client.resetBasePositionAndOrientation(
-                    c.body, *_pose_at(c.prev_rotation, c.prev_translation, c, f)
-                )
+            for c, (rot, trans) in zip(self.colliders, poses, strict=True):
+                quat = Rotation.from_matrix(rot[s + 1]).as_quat().tolist()
+                self.client.resetBasePositionAndOrientation(c.body, trans[s + 1].tolist(), quat)
             self.client.stepSimulation()
         for c in self.colliders:
             c.prev_rotation, c.prev_translation = c.rotation.copy(), c.translation.copy()
@@ -197,14 +194,3 @@ class BulletFluid:
             raise FloatingPointError(f"the sphere fluid diverged: a sphere exceeds {MAX_SPEED} m/s")
         self.time += dt
         return n_sub
-
-
-def _pose_at(r0: np.ndarray, t0: np.ndarray, c: BodyCollider, f: float):
-    """Position and quaternion (x, y, z, w) a fraction ``f`` of the way to ``c``'s pose."""
-    t = t0 + f * (c.translation - t0)
-    if np.array_equal(r0, c.rotation):
-        q = Rotation.from_matrix(r0).as_quat()
-    else:
-        q0, q1 = Rotation.from_matrix(r0), Rotation.from_matrix(c.rotation)
-        q = (q0 * Rotation.from_rotvec(f * (q0.inv() * q1).as_rotvec())).as_quat()
-    return t.tolist(), q.tolist()

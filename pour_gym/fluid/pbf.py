@@ -473,15 +473,26 @@ def wall_distance(
     return out
 
 
-@dataclass(eq=False)  # identity: two containers may be equal in every field
-class Collider:
-    """A container the fluid collides with: its field and its pose (world = R q + t)."""
+# eq=False: colliders are compared by identity; two may be equal in every field.
+@dataclass(eq=False, kw_only=True)
+class PosedCollider:
+    """A container a fluid collides with, at its pose (world = R q + t).
 
-    sdf: SignedDistanceField
+    ``prev_*`` is the pose at the end of the last step; the fluid moves the container from
+    there to ``rotation``, ``translation`` over the next step.
+    """
+
     rotation: np.ndarray
     translation: np.ndarray
     prev_rotation: np.ndarray | None = None
     prev_translation: np.ndarray | None = None
+
+
+@dataclass(eq=False, kw_only=True)
+class Collider(PosedCollider):
+    """A container the PBF fluid collides with through its signed-distance field."""
+
+    sdf: SignedDistanceField
 
 
 class PBFluid:
@@ -598,9 +609,11 @@ class PBFluid:
     def add_collider(self, sdf: SignedDistanceField, rotation=None, translation=None) -> Collider:
         """Add a container's field at a pose; returns the collider, whose pose can be set."""
         c = Collider(
-            sdf,
-            np.eye(3) if rotation is None else np.asarray(rotation, dtype=np.float64),
-            np.zeros(3) if translation is None else np.asarray(translation, dtype=np.float64),
+            sdf=sdf,
+            rotation=np.eye(3) if rotation is None else np.asarray(rotation, dtype=np.float64),
+            translation=np.zeros(3)
+            if translation is None
+            else np.asarray(translation, dtype=np.float64),
         )
         self.colliders.append(c)
         return c
@@ -631,7 +644,7 @@ class PBFluid:
         n_sub = max(int(np.ceil(dt / cfg.substep)), int(np.ceil(max(speed * dt, wall) / limit)), 1)
         h_sub = dt / n_sub
         # Each collider's pose at the n_sub + 1 substep boundaries, computed once a step.
-        poses = [_poses(c, n_sub) for c in self.colliders]
+        poses = [substep_poses(c, n_sub) for c in self.colliders]
         for s in range(n_sub if self.count else 0):
             _predict(self.x, self.v, self._p, self._prev, GRAVITY[2], h_sub)
             self._wall.fill(np.inf)
@@ -733,7 +746,7 @@ def _collider_travel(collider: Collider) -> float:
     return float(np.linalg.norm(after - before, axis=1).max())
 
 
-def _poses(collider: Collider, n_sub: int) -> tuple[np.ndarray, np.ndarray]:
+def substep_poses(collider: PosedCollider, n_sub: int) -> tuple[np.ndarray, np.ndarray]:
     """The collider's poses at the substep boundaries of a step.
 
     From its previous pose to its current one: rotations (n_sub + 1, 3, 3) by slerp,
