@@ -92,12 +92,13 @@ def test_a_particle_inside_a_wall_is_an_error(fluid):
     w.add_particles([[0.0, 0.0, 0.02]])
     w.step(1 / 60)
     w.check_walls()  # in the cavity: fine
-    # Put it in the middle of the base, as a solver that let it through would.
+    # Put it 4 mm deep in the handle, as a solver that let it through would.
+    deep = [0.0724, 0.0004, 0.041]
     if fluid == "pbf":
-        w.fluid.x[0] = [0.0, 0.0, 0.003]
+        w.fluid.x[0] = deep
     else:
         body = w.fluid.bodies[0]
-        w.client.resetBasePositionAndOrientation(body, [0.0, 0.0, 0.003], [0, 0, 0, 1])
+        w.client.resetBasePositionAndOrientation(body, deep, [0, 0, 0, 1])
         w.fluid.step(0.0)  # no time passes; the positions are read again
     with pytest.raises(SimulationError, match="inside the wall"):
         w.check_walls()

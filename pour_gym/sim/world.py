@@ -361,11 +361,12 @@ class World:
         if not len(x) or not self.containers:
             return
         # PBF projects particles a radius out of the walls, one container after the other
-        # (a push out of one can graze another by a hair); the spheres of the reference
-        # backend sink into walls by their contact softness. A particle counts as inside a
-        # wall when its centre is deeper than that.
+        # (a push out of one can graze another by a hair). The spheres of the reference
+        # backend collide with V-HACD convex pieces, which stray from the exact mesh by a
+        # few tenths of a millimetre, and sink in by their contact softness: for them a
+        # centre deeper than 1.25 sphere radii counts as inside a wall.
         r = self.config.radius
-        tolerance = -0.25 * r if isinstance(self.fluid, PBFluid) else -r
+        tolerance = -0.25 * r if isinstance(self.fluid, PBFluid) else -1.25 * r
         for c in self.containers:
             d = wall_distance(x, c.sdf, c.rotation, c.translation)
             if d.min() < tolerance:
