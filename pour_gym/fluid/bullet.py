@@ -158,13 +158,7 @@ class BulletFluid:
 
     def add_collider(self, body: int, rotation=None, translation=None) -> BodyCollider:
         """Register a container body; its pose is set through the returned collider."""
-        c = BodyCollider(
-            body=body,
-            rotation=np.eye(3) if rotation is None else np.asarray(rotation, dtype=np.float64),
-            translation=np.zeros(3)
-            if translation is None
-            else np.asarray(translation, dtype=np.float64),
-        )
+        c = BodyCollider.placed(rotation, translation, body=body)
         self.colliders.append(c)
         return c
 

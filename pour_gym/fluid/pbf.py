@@ -487,6 +487,17 @@ class PosedCollider:
     prev_rotation: np.ndarray | None = None
     prev_translation: np.ndarray | None = None
 
+    @classmethod
+    def placed(cls, rotation=None, translation=None, **handle):
+        """A collider at a pose (identity and origin when not given)."""
+        return cls(
+            rotation=np.eye(3) if rotation is None else np.asarray(rotation, dtype=np.float64),
+            translation=np.zeros(3)
+            if translation is None
+            else np.asarray(translation, dtype=np.float64),
+            **handle,
+        )
+
 
 @dataclass(eq=False, kw_only=True)
 class Collider(PosedCollider):
@@ -608,13 +619,7 @@ class PBFluid:
 
     def add_collider(self, sdf: SignedDistanceField, rotation=None, translation=None) -> Collider:
         """Add a container's field at a pose; returns the collider, whose pose can be set."""
-        c = Collider(
-            sdf=sdf,
-            rotation=np.eye(3) if rotation is None else np.asarray(rotation, dtype=np.float64),
-            translation=np.zeros(3)
-            if translation is None
-            else np.asarray(translation, dtype=np.float64),
-        )
+        c = Collider.placed(rotation, translation, sdf=sdf)
         self.colliders.append(c)
         return c
 
