@@ -94,11 +94,15 @@ class TiltHoldPolicy:
         return a
 
 
-def above_lip(env, delta: float) -> int:
-    """Particles of the source's rest fill above its lip when rotated rigidly by delta."""
+def rest_fill(env) -> np.ndarray:
+    """The source's fill at rest, upright, in its frame (the lattice the episode started from)."""
     u = env.unwrapped
-    asset = u.source.asset
-    rest = cavity_lattice(asset.geometry, u.source.sdf, u.fluid_config.spacing)[: u.fill]
+    return cavity_lattice(u.source.asset.geometry, u.source.sdf, u.fluid_config.spacing)[: u.fill]
+
+
+def above_lip(env, delta: float, rest: np.ndarray) -> int:
+    """Particles of the rest fill above the source's lip when rotated rigidly by delta."""
+    u = env.unwrapped
     rot = Rotation.from_euler("y", delta, degrees=True).as_matrix() @ u._base_rot
     lip = rot @ u._lip_local
     return int(np.count_nonzero((rest @ rot.T)[:, 2] > lip[2] + 1e-9))
@@ -185,14 +189,15 @@ def run_poc(
     # Where the red cup starts to pour (first particles above the lip), to sample around.
     env.reset(seed=seed, options={"source": "red_cup", "target": TARGET_CONTAINER,
                                   "target_amount": 1})  # fmt: skip
-    onset = next(d for d in np.arange(0.0, 135.0, 0.5) if above_lip(env, d) > 0)
+    red_rest = rest_fill(env)  # the same fill in every red-cup episode
+    onset = next(d for d in np.arange(0.0, 135.0, 0.5) if above_lip(env, d, red_rest) > 0)
     x, y = [], []
     for k in tqdm(range(samples), desc="poc: red cup samples", file=sys.stderr):
         delta = float(rng.uniform(onset, onset + 35.0))
         duration = float(rng.uniform(0.0, 3.0))
         policy = TiltHoldPolicy(delta, duration, offset)
         info = _episode(env, policy, "red_cup", seed + 1 + k, 1)
-        x.append([above_lip(env, delta), duration])
+        x.append([above_lip(env, delta, red_rest), duration])
         y.append(info["fill"] - info["in_source"])
     model = KernelRegression().fit(np.array(x), np.array(y))
     deltas = np.arange(0.0, 120.0, 0.5)
@@ -201,7 +206,8 @@ def run_poc(
     for name in tqdm(objects, desc="poc: pour", file=sys.stderr):
         env.reset(seed=seed, options={"source": name, "target": TARGET_CONTAINER,
                                       "target_amount": min(target, 1000)})  # fmt: skip
-        above = np.array([above_lip(env, d) for d in deltas])
+        rest = rest_fill(env)
+        above = np.array([above_lip(env, d, rest) for d in deltas])
         grid = np.array([(a, t) for a in above for t in durations])
         pred = model.predict(grid).reshape(len(deltas), len(durations))
         err = np.abs(pred - target)

@@ -136,10 +136,11 @@ class TiltPourEnv(PourGymEnv):
         self.rest = lattice[: self.count]
         self.rotation = Rotation.from_rotvec(np.radians(tilt) * AXIS).as_matrix()
         self.asset = asset
+        self.f4 = self._f4()  # computed once: observation and info both report it
         self._world_ready = False
         return self._observation(), self._info()
 
-    def f4(self) -> float:
+    def _f4(self) -> float:
         """The fluid at rest upright, rotated with the container: above the lip / volume."""
         g = self.asset.geometry
         world = self.rest @ self.rotation.T
@@ -193,7 +194,7 @@ class TiltPourEnv(PourGymEnv):
 
     def _observation(self) -> np.ndarray:
         if self.obs_mode == "features":
-            obs = np.array([self.f4()])
+            obs = np.array([self.f4])
         else:
             size = np.ptp(self.asset.mesh.bounds, axis=0) / 0.1
             obs = np.array([np.radians(self.tilt), self.fill, *size])
@@ -206,6 +207,6 @@ class TiltPourEnv(PourGymEnv):
             "fill": self.fill,
             "tilt_deg": self.tilt,
             "particles": self.count,
-            "features": [self.f4()],
+            "features": [self.f4],
             "is_success": False,
         }

@@ -41,7 +41,11 @@ def block(low: np.ndarray, high: np.ndarray, spacing: float) -> np.ndarray:
 
 
 def fill_lattice(
-    geometry: ContainerGeometry, sdf: SignedDistanceField, spacing: float, count: int
+    geometry: ContainerGeometry,
+    sdf: SignedDistanceField,
+    spacing: float,
+    count: int,
+    lattice: np.ndarray | None = None,
 ) -> np.ndarray:
     """The ``count`` lowest lattice points in an upright container's cavity, in its frame.
 
@@ -50,6 +54,7 @@ def fill_lattice(
         sdf: the container's signed-distance field.
         spacing: lattice spacing, m.
         count: particles wanted.
+        lattice: :func:`cavity_lattice` of the same arguments, if already computed.
 
     Returns:
         (count, 3) positions in the container's frame, m.
@@ -57,7 +62,7 @@ def fill_lattice(
     Raises:
         InputError: the cavity holds fewer than ``count`` lattice points.
     """
-    candidates = cavity_lattice(geometry, sdf, spacing)
+    candidates = cavity_lattice(geometry, sdf, spacing) if lattice is None else lattice
     if len(candidates) < count:
         raise InputError(
             f"the container holds {len(candidates)} particles of spacing {spacing} m below its "

@@ -34,7 +34,7 @@ from pour_gym.fluid.pbf import Collider, PBFConfig, PBFluid, wall_distance
 from pour_gym.fluid.sdf import SignedDistanceField, build_sdf
 from pour_gym.sim.camera import Camera, render
 from pour_gym.sim.census import Census, take_census
-from pour_gym.sim.spawn import block, fill_lattice
+from pour_gym.sim.spawn import block, cavity_lattice, fill_lattice
 
 FLUIDS = ("pbf", "bullet")
 TABLE_COLOR = (0.72, 0.60, 0.45, 1.0)
@@ -139,6 +139,8 @@ class Container:
         body: the pybullet body.
         sdf: its signed-distance field, in its frame.
         collider: the fluid's handle on it; holds the current pose.
+        lattice: its cavity's fill lattice at the world's spacing (kept after the first
+            fill, so that refilling every episode costs no recomputation).
     """
 
     index: int
@@ -146,6 +148,7 @@ class Container:
     body: int
     sdf: SignedDistanceField
     collider: Collider | BodyCollider
+    lattice: np.ndarray | None = None
 
     @property
     def rotation(self) -> np.ndarray:
@@ -331,7 +334,12 @@ class World:
         count = round(volume / self.particle_volume) if volume is not None else particles
         if count < 0:
             raise InputError(f"a fill cannot be negative ({count} particles)")
-        local = fill_lattice(container.asset.geometry, container.sdf, self.config.spacing, count)
+        spacing = self.config.spacing
+        if container.lattice is None:
+            container.lattice = cavity_lattice(container.asset.geometry, container.sdf, spacing)
+        local = fill_lattice(
+            container.asset.geometry, container.sdf, spacing, count, container.lattice
+        )
         return self.add_particles(container.to_world(local))
 
     # ------------------------------------------------------------------ time
