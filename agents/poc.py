@@ -1,13 +1,17 @@
 """The thesis's proof of concept (chapter 6, Table 6.1): a pouring policy from the features.
 
-The policy moves the source's lip to a point p, tilts to an angle delta, holds it for a
-duration t and tilts back. delta and t come from a kernel-regression estimate, learnt on
-the red cup alone, of the particles that pour out as a function of the particles above
-the lip (the fluid at rest rotated rigidly to delta, thesis f4 as a count) and of the
-duration; for each container the (delta, t) whose estimate is closest to the target is
-used. p comes from the experiment-1 classifier: the lip goes where a released particle
-is classified as landing in the target with probability at least 0.99, as near the
-target's near rim as that allows.
+The thesis's policy moves the source's lip to a point p, tilts to an angle delta, holds
+it for a duration t and tilts back. delta and t come from a kernel-regression estimate,
+learnt on the red cup alone, of the particles that pour out as a function of the
+particles above the lip (thesis f4 as a count, hydrostatic, above a sill fitted to the
+red cup) and of the duration; for each container the (delta, t) whose estimate is
+closest to the target is used. p comes from the experiment-1 classifier: the lip goes
+where a released particle is classified as landing in the target with probability at
+least 0.99, as near the target's near rim as that allows.
+
+The closed-loop policy keeps p but sets the tilt and its duration while pouring, from
+the fluid the features show leaving the source; its parameters come from a policy
+search on the red cup (the thesis's future work).
 """
 
 from __future__ import annotations
@@ -15,15 +19,16 @@ from __future__ import annotations
 import json
 import sys
 from dataclasses import dataclass
+from importlib.resources import files
 from pathlib import Path
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 from tqdm import tqdm
 
-from pour_gym.envs.pour import FEATURE_NAMES
+from pour_gym.envs.pour import FEATURE_NAMES, UPRIGHT_DEG
 from pour_gym.errors import InputError
-from pour_gym.sim.spawn import cavity_lattice
+from pour_gym.features import cavity_points, held_volume
 
 _I = {name: k for k, name in enumerate(FEATURE_NAMES)}
 POC_OBJECTS = (
@@ -45,6 +50,9 @@ THESIS_ROWS = {  # Table 6.1: delta (deg), duration (s), outcome (particles, tar
     "very_small_cup": (49.0, 7.13, 21),
 }
 TARGET_CONTAINER = "standard_bowl"
+# The closed-loop policy's parameters: `pour-gym search` on the red cup, 20 particles
+# (the command is in docs/poc/run.sh).
+SEARCHED = "poc_search_red_cup_20.json"
 
 
 @dataclass
@@ -94,18 +102,30 @@ class TiltHoldPolicy:
         return a
 
 
-def rest_fill(env) -> np.ndarray:
-    """The source's fill at rest, upright, in its frame (the lattice the episode started from)."""
-    u = env.unwrapped
-    return cavity_lattice(u.source.asset.geometry, u.source.sdf, u.fluid_config.spacing)[: u.fill]
+def f4_particles(env, delta: float, points: np.ndarray, sill: float = 0.0) -> float:
+    """Thesis f4 in particles: the source's fill above its lip when tilted by ``delta`` deg.
 
-
-def above_lip(env, delta: float, rest: np.ndarray) -> int:
-    """Particles of the rest fill above the source's lip when rotated rigidly by delta."""
+    Quasi-static (hydrostatic): the fill less what the tilted cavity holds below its lowest
+    rim point raised by ``sill`` m (:func:`pour_gym.features.held_volume`); negative while
+    the level is below. ``points`` are the source's :func:`pour_gym.features.cavity_points`.
+    """
     u = env.unwrapped
     rot = Rotation.from_euler("y", delta, degrees=True).as_matrix() @ u._base_rot
-    lip = rot @ u._lip_local
-    return int(np.count_nonzero((rest @ rot.T)[:, 2] > lip[2] + 1e-9))
+    held = held_volume(u.source.asset.geometry, rot, points, sill) / u.world.particle_volume
+    return float(u.fill - held)
+
+
+def fit_sill(deltas: np.ndarray, poured: np.ndarray, f4_of) -> float:
+    """The sill (m) whose hydrostatic onset best separates pours that ran from the rest.
+
+    The sill with the fewest samples where (f4 > 0) != (poured > 0), the smallest of
+    equals; ``f4_of(delta, sill)`` gives f4 in particles at a tilt of ``delta`` deg.
+    """
+    sills = np.arange(0.0, 0.02, 0.0005)
+    ran = np.asarray(poured) > 0
+    wrong = [np.count_nonzero((np.array([f4_of(d, s) for d in deltas]) > 0) != ran)
+             for s in sills]  # fmt: skip
+    return float(sills[int(np.argmin(wrong))])
 
 
 class KernelRegression:
@@ -130,16 +150,28 @@ class KernelRegression:
 
 
 def _episode(env, policy, source: str, seed: int, target_amount: int) -> dict:
+    """One pour into the standard bowl.
+
+    Returns:
+        The last info, with the largest tilt (deg) and the time spent pouring (s, from the
+        first particle out to the start of the tilt back).
+    """
     obs, _ = env.reset(
         seed=seed,
         options={"source": source, "target": TARGET_CONTAINER, "target_amount": target_amount},
     )
     policy.reset()
-    done = False
+    done, max_tilt, pouring = False, 0.0, 0
     while not done:
-        obs, _, terminated, truncated, info = env.step(policy(obs))
+        action = policy(obs)
+        obs, _, terminated, truncated, info = env.step(action)
         done = terminated or truncated
-    return info
+        max_tilt = max(max_tilt, info["tilt_deg"])
+        pouring += int(info["in_source"] < info["fill"] and policy.phase != "back")
+        # A pour that never started would run to the time limit otherwise.
+        done = done or (policy.phase == "back" and info["tilt_deg"] < UPRIGHT_DEG
+                        and info["in_flight"] == 0)  # fmt: skip
+    return {**info, "max_tilt_deg": max_tilt, "pouring_s": pouring * env.unwrapped.dt}
 
 
 def choose_lip_offset(seed: int = 0) -> tuple[float, dict]:
@@ -157,116 +189,184 @@ def choose_lip_offset(seed: int = 0) -> tuple[float, dict]:
     return offset, {"f1": f1.tolist(), "p": p.tolist()}
 
 
+def learn_estimate(env, offset: float, samples: int, seed: int) -> tuple[KernelRegression, dict]:
+    """Sample red-cup pours at random tilts and holds; fit outflow(f4 particles, duration).
+
+    Tilts are drawn from the quasi-static onset (f4 = 0) to 25 degrees beyond, holds from
+    0 to 6 s. Our particle water runs over a rim only once its level stands some 8 mm
+    above the lip (the surface particles must clear the rim's crest), so f4 is counted
+    above a sill fitted to the red-cup samples (:func:`fit_sill`): a height, which carries
+    over to cups of other sizes, where a volume would not.
+
+    Returns:
+        The regression, and the samples with the fitted ``sill_m``.
+    """
+    rng = np.random.default_rng(seed)
+    env.reset(seed=seed, options={"source": "red_cup", "target": TARGET_CONTAINER,
+                                  "target_amount": 1})  # fmt: skip
+    points = cavity_points(env.unwrapped.source.asset.geometry)
+    onset = next(d for d in np.arange(0.0, 135.0, 0.25) if f4_particles(env, d, points) > 0)
+    deltas, durations, y = [], [], []
+    for k in tqdm(range(samples), desc="poc: red cup samples", file=sys.stderr):
+        deltas.append(float(rng.uniform(onset, onset + 25.0)))
+        durations.append(float(rng.uniform(0.0, 6.0)))
+        policy = TiltHoldPolicy(deltas[-1], durations[-1], offset)
+        info = _episode(env, policy, "red_cup", seed + 1 + k, 1)
+        y.append(info["fill"] - info["in_source"])
+    sill = fit_sill(np.array(deltas), np.array(y), lambda d, s: f4_particles(env, d, points, s))
+    x = [[f4_particles(env, d, points, sill), t] for d, t in zip(deltas, durations, strict=True)]
+    doc = {"onset_deg": float(onset), "sill_m": sill, "delta_deg": deltas, "x": x, "y": y}
+    return KernelRegression().fit(np.array(x), np.array(y)), doc
+
+
+def plan_tilt_hold(
+    env, model: KernelRegression, target: int, sill: float = 0.0
+) -> tuple[float, float, float]:
+    """The tilt and hold whose estimated outflow is closest to ``target`` particles.
+
+    Among equals, the gentlest tilt and the shortest hold.
+
+    Returns:
+        (delta deg, duration s, the estimated outflow in particles).
+    """
+    points = cavity_points(env.unwrapped.source.asset.geometry)
+    deltas = np.arange(0.0, 120.0, 0.25)
+    durations = np.arange(0.0, 6.01, 0.1)
+    f4 = np.array([f4_particles(env, d, points, sill) for d in deltas])
+    grid = np.array([(a, t) for a in f4 for t in durations])
+    pred = model.predict(grid).reshape(len(deltas), len(durations))
+    err = np.abs(pred - target) + 1e-6 * (deltas[:, None] + durations[None])
+    i, j = np.unravel_index(np.argmin(err), err.shape)
+    return float(deltas[i]), float(durations[j]), float(pred[i, j])
+
+
+POLICIES = ("thesis", "closed-loop")
+
+
 def run_poc(
     target: int = 20,
     samples: int = 60,
     seed: int = 0,
     objects: tuple[str, ...] = POC_OBJECTS,
     out: str | Path | None = None,
+    policy: str = "thesis",
+    params: str | Path | None = None,
+    episodes: int = 1,
 ) -> dict:
-    """Learn the estimate on the red cup, then pour ``target`` particles from each cup.
+    """Pour ``target`` particles from each cup into the standard bowl (Table 6.1).
+
+    ``policy="thesis"``: learn the outflow estimate on the red cup from ``samples`` pours,
+    then tilt to delta and hold for t chosen from it (open loop), as the thesis does.
+    ``policy="closed-loop"``: the same lip point p, but the tilt and its duration are set
+    while pouring from the fluid the features show leaving the source
+    (:class:`pour_gym.agents.scripted.ScriptedPourPolicy`, told the target amount), with
+    the parameters of a policy search (``params``, a ``search.json``; by default the
+    packaged red-cup search for 20 particles); delta and duration in the rows are then
+    the largest tilt and the time spent pouring.
 
     Args:
-        target: particles to pour.
-        samples: red-cup episodes for the kernel regression.
-        seed: first seed.
+        target: particles to pour (0.125 ml each at the default spacing).
+        samples: red-cup episodes for the kernel regression (thesis policy).
+        seed: first seed; episode k of every cup uses ``seed + k``.
         objects: source containers (each pours into the standard bowl).
-        out: folder for ``poc.json`` (optional).
+        out: folder for ``poc_<policy>_<target>.json`` (optional).
+        policy: "thesis" or "closed-loop".
+        params: a ``search.json`` for the closed-loop policy (default: packaged).
+        episodes: pours per cup (the target bowl's place differs with the seed).
 
     Returns:
-        ``{"rows": [{"object", "delta_deg", "duration_s", "target", "outcome", "error",
-        "inside", "outside"}...], "mean_abs_error", "spilled", ...}``.
+        ``{"rows": [{"object", "seed", "delta_deg", "duration_s", "target", "outcome",
+        "error", "inside", "outside"}...], "mean_abs_error", "spilled", ...}``.
     """
     import gymnasium as gym
 
     import pour_gym  # noqa: F401 - registers the environments
+    from pour_gym.agents.search import load_policy
 
     if target < 1:
         raise InputError(f"the target must be at least one particle, not {target}")
+    if policy not in POLICIES:
+        raise InputError(f"policy must be one of {POLICIES}, not {policy!r}")
+    if episodes < 1:
+        raise InputError(f"episodes must be at least 1, not {episodes}")
     offset, _ = choose_lip_offset(seed)
     env = gym.make("PourGym/Pour-v0", amount_range=(1, 1000))
-    rng = np.random.default_rng(seed)
-    # Where the red cup starts to pour (first particles above the lip), to sample around.
-    env.reset(seed=seed, options={"source": "red_cup", "target": TARGET_CONTAINER,
-                                  "target_amount": 1})  # fmt: skip
-    red_rest = rest_fill(env)  # the same fill in every red-cup episode
-    onset = next(d for d in np.arange(0.0, 135.0, 0.5) if above_lip(env, d, red_rest) > 0)
-    x, y = [], []
-    for k in tqdm(range(samples), desc="poc: red cup samples", file=sys.stderr):
-        delta = float(rng.uniform(onset, onset + 35.0))
-        duration = float(rng.uniform(0.0, 3.0))
-        policy = TiltHoldPolicy(delta, duration, offset)
-        info = _episode(env, policy, "red_cup", seed + 1 + k, 1)
-        x.append([above_lip(env, delta, red_rest), duration])
-        y.append(info["fill"] - info["in_source"])
-    model = KernelRegression().fit(np.array(x), np.array(y))
-    deltas = np.arange(0.0, 120.0, 0.5)
-    durations = np.arange(0.0, 3.01, 0.1)
+    extra: dict = {}
+    if policy == "thesis":
+        model, extra["estimate_samples"] = learn_estimate(env, offset, samples, seed)
+    else:
+        pourer = load_policy(params or files("pour_gym.agents") / SEARCHED, target)
+        pourer.lip_offset = offset
+        extra["params"] = {k: v for k, v in vars(pourer).items() if not k.startswith("_")}
     rows = []
-    for name in tqdm(objects, desc="poc: pour", file=sys.stderr):
-        env.reset(seed=seed, options={"source": name, "target": TARGET_CONTAINER,
-                                      "target_amount": min(target, 1000)})  # fmt: skip
-        rest = rest_fill(env)
-        above = np.array([above_lip(env, d, rest) for d in deltas])
-        grid = np.array([(a, t) for a in above for t in durations])
-        pred = model.predict(grid).reshape(len(deltas), len(durations))
-        err = np.abs(pred - target)
-        # Closest to the target; among equals, the gentlest tilt and the shortest hold.
-        i, j = np.unravel_index(np.argmin(err + 1e-6 * (deltas[:, None] + durations[None])),
-                                err.shape)  # fmt: skip
-        delta, duration = float(deltas[i]), float(durations[j])
-        info = _episode(env, TiltHoldPolicy(delta, duration, offset), name, seed, target)
-        outcome = info["fill"] - info["in_source"]
+    runs = [(name, seed + k) for name in objects for k in range(episodes)]
+    for name, s in tqdm(runs, desc=f"poc: pour ({policy})", file=sys.stderr):
+        if policy == "thesis":
+            env.reset(seed=s, options={"source": name, "target": TARGET_CONTAINER,
+                                       "target_amount": min(target, 1000)})  # fmt: skip
+            sill = extra["estimate_samples"]["sill_m"]
+            delta, duration, _ = plan_tilt_hold(env, model, target, sill)
+            info = _episode(env, TiltHoldPolicy(delta, duration, offset), name, s, target)
+        else:
+            info = _episode(env, pourer, name, s, target)
+            delta, duration = info["max_tilt_deg"], info["pouring_s"]
+        thesis = THESIS_ROWS.get(name)
         rows.append(
             {
                 "object": name,
-                "delta_deg": delta,
-                "duration_s": duration,
+                "seed": s,
+                "delta_deg": round(delta, 2),
+                "duration_s": round(duration, 2),
                 "target": target,
-                "outcome": int(outcome),
+                "outcome": int(info["fill"] - info["in_source"]),
                 "error": int(abs(info["poured"] - target)),
                 "inside": int(info["poured"]),
                 "outside": int(info["spilled"] + info["in_flight"]),
-                "thesis": dict(
-                    zip(("delta_deg", "duration_s", "outcome"), THESIS_ROWS[name], strict=True)
-                )
-                if name in THESIS_ROWS
+                "thesis": dict(zip(("delta_deg", "duration_s", "outcome"), thesis, strict=True))
+                if thesis
                 else None,
             }
         )
     env.close()
     doc = {
+        "policy": policy,
         "target": target,
-        "target_ml": target * 0.125,
+        "target_ml": target * env.unwrapped.world.particle_volume * 1e6,
         "lip_offset": offset,
-        "samples": samples,
+        "samples": samples if policy == "thesis" else 0,
+        "episodes_per_object": episodes,
         "rows": rows,
         "mean_abs_error": float(np.mean([r["error"] for r in rows])),
+        "max_error": int(max(r["error"] for r in rows)),
         "spilled": int(sum(r["outside"] for r in rows)),
+        **extra,
     }
     if out is not None:
         Path(out).mkdir(parents=True, exist_ok=True)
-        (Path(out) / f"poc_{target}.json").write_text(json.dumps(doc, indent=2) + "\n")
+        name = f"poc_{policy}_{target}.json"
+        (Path(out) / name).write_text(json.dumps(doc, indent=2) + "\n")
     return doc
 
 
 def poc_table(doc: dict) -> str:
-    """Table 6.1 with the thesis's rows beside ours."""
+    """Table 6.1 with the thesis's rows (target 20 particles) beside ours."""
     lines = [
-        "| object | delta | duration | target | outcome | error | inside | outside | "
+        "| object | seed | delta | duration | target | outcome | error | inside | outside | "
         "thesis delta | thesis duration | thesis outcome |",
-        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
+        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
     ]
     for r in doc["rows"]:
         t = r["thesis"] or {}
         lines.append(
-            f"| {r['object']} | {r['delta_deg']:.1f} | {r['duration_s']:.1f} s | "
+            f"| {r['object']} | {r['seed']} | {r['delta_deg']:.1f} | {r['duration_s']:.1f} s | "
             f"{r['target']} | {r['outcome']} | {r['error']} | {r['inside']} | "
             f"{r['outside']} | {t.get('delta_deg', '')} | {t.get('duration_s', '')} | "
             f"{t.get('outcome', '')} |"
         )
     lines.append(
-        f"\nmean absolute error {doc['mean_abs_error']:.2f} particles (thesis: 3.0 at a "
-        f"target of 20), spilled {doc['spilled']}"
+        f"\n{doc['policy']} policy, target {doc['target']} particles "
+        f"({doc['target_ml']:.3g} ml): mean absolute error {doc['mean_abs_error']:.2f} "
+        f"particles, largest {doc['max_error']}, spilled {doc['spilled']} "
+        f"(thesis: 3.0 at a target of 20, spilled 0)"
     )
     return "\n".join(lines)

@@ -1,10 +1,13 @@
 """A scripted pouring policy for PourGym/Pour-v0 that reads only the warped features.
 
 Move the lip over the near half of the target's opening, tilt quickly until fluid rises
-above the lip (thesis f4 > 0), then slowly while it pours, and tilt back as soon as the
-fluid poured plus the fluid in flight reaches the target amount less what will still run
-out while tilting back (a fraction of the amount, estimated from the flow at that moment).
-Because every quantity it uses is relative to the containers' labelled geometry, the same
+above the lip (thesis f4 > 0), then slowly until it pours. While it pours, regulate the
+flow by the tilt: the wanted flow is a fraction of what remains to be poured (never less
+than a trickle), so the stream thins as the target amount comes near; tilt on while the
+flow is below that, tilt back a little while it is above. Tilt back for good as soon as
+the fluid poured plus the fluid in flight reaches the target amount less what will still
+run out while tilting back (a fraction of the current flow). Because every quantity it
+uses is relative to the containers' labelled geometry and to the target amount, the same
 script pours from and into any container.
 """
 
@@ -23,23 +26,38 @@ _I = {name: k for k, name in enumerate(FEATURE_NAMES)}
 class ScriptedPourPolicy:
     """Pour by the features (``obs_mode="features"`` observations of Pour-v0).
 
+    Flows are in target amounts per 0.1 s step, the unit the observation gives them in.
+
     Attributes:
         lip_offset: where the lip goes, in target rim radii before the rim centre (the
             stream leaves the lip moving towards the target's far side).
         position_tolerance: how close the lip must be before tilting, m.
         slow_rate: tilt rate while pouring, as an action in [0, 1].
-        flow: the flow, in target amounts per step, above which the tilt is held.
+        lead: steps' worth of the current flow that still run out after tilting back
+            starts.
+        share: the wanted flow per step as a share of what remains to be poured.
+        min_flow: the least wanted flow (the trickle at the end), in target amounts per
+            step; replaced by ``min_particles / amount`` when ``amount`` is known.
+        gain: tilt action per relative flow error (wanted - flow) / wanted, in units of
+            ``slow_rate``.
+        back_rate: the fastest tilt back while regulating, as an action in [0, 1].
         max_speed: largest lip speed, as an action in [0, 1].
-        lead: steps' worth of the current flow that still runs out after tilting back
-            starts (measured on the red cup: 1-2).
+        amount: the target amount in particles, if the caller knows it (the features do
+            not hold it); it turns the trickle into an absolute ``min_particles``.
+        min_particles: the trickle, in particles per step, when ``amount`` is known.
     """
 
     lip_offset: float = 0.6
     position_tolerance: float = 0.004
     slow_rate: float = 0.12
-    lead: float = 1.5
-    flow: float = 0.04
+    lead: float = 0.5
+    share: float = 0.15
+    min_flow: float = 0.05
+    gain: float = 2.0
+    back_rate: float = 1.0
     max_speed: float = 0.5
+    amount: int | None = None
+    min_particles: float = 1.5
 
     def __post_init__(self) -> None:
         self.reset()
@@ -67,18 +85,23 @@ class ScriptedPourPolicy:
             if np.hypot(ex, ey) < self.position_tolerance:
                 self.phase = "tilt"
             return action
-        out = o[_I["poured"]] + o[_I["in_flight"]] + o[_I["spilled"]]
+        # What has left the source, as a running maximum: a particle flickering across
+        # the lip in and out of the source's cavity counts once (its +1/-1 as a flow
+        # would tilt the source back at every other step and stall the pour).
+        out = max(self._last_out, o[_I["poured"]] + o[_I["in_flight"]] + o[_I["spilled"]])
         if self.phase == "tilt":
-            flow = out - self._last_out  # fraction of the amount per step
+            flow = out - self._last_out
             self._last_out = out
             if out + self.lead * flow >= 1.0:
                 self.phase = "back"
-            elif o[_I["f4_source"]] <= 0.0 and out <= 0.0:
-                action[3] = 1.0
-            elif flow < self.flow:
-                # Tilt on while the flow is gentle, hold while it is strong: a thin
-                # stream lands where it is aimed and stops soon after tilting back.
-                action[3] = self.slow_rate
+            elif out <= 0.0:
+                # Quickly to where the fluid reaches the lip, then slowly until it pours.
+                action[3] = 1.0 if o[_I["f4_source"]] <= 0.0 else self.slow_rate
+            else:
+                trickle = self.min_particles / self.amount if self.amount else self.min_flow
+                wanted = max(trickle, self.share * (1.0 - out))
+                step = self.gain * self.slow_rate * (wanted - flow) / wanted
+                action[3] = np.clip(step, -self.back_rate, self.slow_rate)
         if self.phase == "back":
             action[3] = -1.0
         return action

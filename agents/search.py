@@ -1,17 +1,20 @@
 """Policy search (the thesis's future work, chapter 8): CMA-ES over a policy's parameters.
 
 The searched policy is the scripted features policy of Pour-v0
-(:class:`pour_gym.agents.scripted.ScriptedPourPolicy`); its four parameters (where the lip
-goes, how fast it tilts, how much flow it holds, how early it tilts back) are searched
-with CMA-ES (the ``cma`` package) to maximise the mean episode return on the training
-containers. Every candidate is scored on the same seeds (common random numbers), so that
-candidates differ by their parameters, not by their luck.
+(:class:`pour_gym.agents.scripted.ScriptedPourPolicy`); its parameters (where the lip goes,
+how fast it tilts, how it regulates the flow, how early it tilts back) are searched with
+CMA-ES (the ``cma`` package) in the unit cube of their ranges. The objective is the mean
+episode return, or, for a fixed target amount, the mean absolute amount error in
+particles (spilled particles count twice), which is what the proof of concept measures.
+Every candidate is scored on the same seeds (common random numbers), so that candidates
+differ by their parameters, not by their luck.
 """
 
 from __future__ import annotations
 
 import json
 import sys
+from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
@@ -19,28 +22,51 @@ from tqdm import tqdm
 
 from pour_gym.agents.scripted import ScriptedPourPolicy
 from pour_gym.assets import expand_containers
+from pour_gym.errors import InputError
 
 # Searched parameters: name, lower bound, upper bound (CMA-ES works in [0, 1] per axis).
 PARAMETERS = (
     ("lip_offset", 0.2, 0.9),
     ("slow_rate", 0.03, 0.4),
-    ("lead", 0.5, 3.0),
-    ("flow", 0.01, 0.15),
+    ("lead", 0.0, 2.0),
+    ("share", 0.05, 0.5),
+    ("min_flow", 0.01, 0.15),
+    ("min_particles", 0.5, 4.0),
+    ("gain", 0.5, 6.0),
+    ("back_rate", 0.05, 1.0),
 )
+OBJECTIVES = ("return", "error")
 
 
-def to_policy(u: np.ndarray) -> ScriptedPourPolicy:
-    """The policy of a point of the unit cube."""
+def to_policy(u: np.ndarray, amount: int | None = None) -> ScriptedPourPolicy:
+    """The policy of a point of the unit cube (``amount``: a known target amount)."""
     u = np.clip(np.asarray(u, float), 0.0, 1.0)
     kwargs = {name: lo + x * (hi - lo) for (name, lo, hi), x in zip(PARAMETERS, u, strict=True)}
-    return ScriptedPourPolicy(**kwargs)
+    return ScriptedPourPolicy(**kwargs, amount=amount)
 
 
-def episode_returns(policy: ScriptedPourPolicy, env, seeds: list[int]) -> list[dict]:
+def load_policy(path, amount: int | None = None) -> ScriptedPourPolicy:
+    """The best policy of a ``search.json`` written by :func:`search`.
+
+    Args:
+        path: the file (a path, or a packaged resource with ``read_text``).
+        amount: the target amount in particles, if known (see ``ScriptedPourPolicy``).
+    """
+    source = path if hasattr(path, "read_text") else Path(path)
+    try:
+        best = json.loads(source.read_text())["best"]
+    except (OSError, ValueError, KeyError) as err:
+        raise InputError(f"{path} is not a search.json from `pour-gym search` ({err})") from err
+    return ScriptedPourPolicy(**best, amount=amount)
+
+
+def episode_returns(
+    policy: ScriptedPourPolicy, env, seeds: list[int], options: dict | None = None
+) -> list[dict]:
     """Run one episode per seed; the last infos with the returns."""
     out = []
     for seed in seeds:
-        obs, info = env.reset(seed=seed)
+        obs, info = env.reset(seed=seed, options=options)
         policy.reset()
         total, done = 0.0, False
         while not done:
@@ -51,6 +77,16 @@ def episode_returns(policy: ScriptedPourPolicy, env, seeds: list[int]) -> list[d
     return out
 
 
+def score(results: list[dict], objective: str) -> float:
+    """Higher is better: the mean return, or minus the mean error (spills count twice)."""
+    if objective == "return":
+        return float(np.mean([r["return"] for r in results]))
+    errors = [
+        abs(r["poured"] - r["target_amount"]) + 2 * (r["spilled"] + r["in_flight"]) for r in results
+    ]
+    return -float(np.mean(errors))
+
+
 def search(
     objects="train",
     generations: int = 6,
@@ -59,59 +95,89 @@ def search(
     seed: int = 0,
     out: str | Path | None = None,
     env_kwargs: dict | None = None,
+    objective: str = "return",
+    target_amount: int | None = None,
+    target_objects=None,
 ) -> dict:
     """CMA-ES over the scripted policy's parameters on Pour-v0.
 
     Args:
-        objects: containers to search on.
+        objects: containers to search on (sources, and targets unless ``target_objects``).
         generations: CMA-ES iterations.
         population: candidates per generation.
         episodes: episodes per candidate (the same seeds for all).
         seed: seed of CMA-ES and of the episodes.
         out: folder for ``search.json`` (optional).
         env_kwargs: more Pour-v0 arguments (e.g. a smaller ``source_particles``).
+        objective: "return" (mean episode return) or "error" (mean |poured - target| in
+            particles, spills twice).
+        target_amount: pour this many particles in every episode, and tell the policy.
+        target_objects: the containers to pour into (default: ``objects``).
 
     Returns:
-        ``{"best": {param: value}, "best_return": x, "start_return": x, "history": [...]}``.
+        ``{"best": {param: value}, "best_score": x, "start_score": x, "objective",
+        "history": [...]}``.
     """
     import cma
     import gymnasium as gym
 
     import pour_gym  # noqa: F401 - registers the environments
 
-    env = gym.make(
-        "PourGym/Pour-v0", objects=list(expand_containers(objects)), **(env_kwargs or {})
-    )
+    if objective not in OBJECTIVES:
+        raise InputError(f"objective must be one of {OBJECTIVES}, not {objective!r}")
+    if generations < 1 or population < 2 or episodes < 1:
+        raise InputError(
+            "search needs at least 1 generation, 2 candidates and 1 episode per candidate "
+            f"(got {generations}, {population}, {episodes})"
+        )
+    sources = list(expand_containers(objects))
+    targets = list(expand_containers(target_objects)) if target_objects is not None else sources
+    kwargs = dict(env_kwargs or {})
+    if target_amount is not None:  # any amount the fill allows
+        kwargs.setdefault("amount_range", (1, 1000))
+    env = gym.make("PourGym/Pour-v0", source_objects=sources, target_objects=targets, **kwargs)
+    options = {"target_amount": int(target_amount)} if target_amount is not None else None
     seeds = [seed * 1000 + k for k in range(episodes)]
+
+    def evaluate(policy: ScriptedPourPolicy) -> float:
+        return score(episode_returns(policy, env, seeds, options), objective)
+
     # Start at the hand-set parameters.
-    default = ScriptedPourPolicy()
+    default = ScriptedPourPolicy(amount=target_amount)
     x0 = [(getattr(default, n) - lo) / (hi - lo) for n, lo, hi in PARAMETERS]
-    start = float(np.mean([r["return"] for r in episode_returns(default, env, seeds)]))
+    start = evaluate(default)
     es = cma.CMAEvolutionStrategy(
         x0, 0.2, {"bounds": [0.0, 1.0], "popsize": population, "seed": seed + 1, "verbose": -9}
     )
     history = []
+    best_score, best_u = start, np.array(x0)
     bar = tqdm(total=generations * population, desc="policy search", file=sys.stderr)
     for g in range(generations):
         candidates = es.ask()
         scores = []
         for u in candidates:
-            results = episode_returns(to_policy(u), env, seeds)
-            scores.append(float(np.mean([r["return"] for r in results])))
+            scores.append(evaluate(to_policy(u, target_amount)))
             bar.update()
+            bar.set_postfix(best=f"{max(best_score, *scores):.3f}")
         es.tell(candidates, [-s for s in scores])  # CMA-ES minimises
+        k = int(np.argmax(scores))
+        if scores[k] > best_score:
+            best_score, best_u = scores[k], np.asarray(candidates[k])
         history.append({"generation": g, "best": max(scores), "mean": float(np.mean(scores))})
     bar.close()
     env.close()
-    best_u = es.result.xbest
-    best = {n: lo + x * (hi - lo) for (n, lo, hi), x in zip(PARAMETERS, best_u, strict=True)}
+    best = asdict(to_policy(best_u))
     doc = {
-        "objects": list(expand_containers(objects)),
+        "sources": sources,
+        "targets": targets,
+        "objective": objective,
+        "target_amount": target_amount,
         "episodes_per_candidate": episodes,
+        "seeds": seeds,
         "start": {n: getattr(default, n) for n, _, _ in PARAMETERS},
-        "start_return": start,
-        "best": best,
-        "best_return": float(-es.result.fbest),
+        "start_score": start,
+        "best": {n: float(best[n]) for n, _, _ in PARAMETERS},
+        "best_score": float(best_score),
         "history": history,
     }
     if out is not None:

@@ -444,12 +444,17 @@ def cmd_evaluate(args: argparse.Namespace) -> Output:
     env_kwargs: dict = {}
     trained: list[str] = []
     reset = None
-    if args.policy == "scripted":
+    if args.policy == "scripted" or args.policy.endswith(".json"):
         from pour_gym.agents.scripted import ScriptedPourPolicy
+        from pour_gym.agents.search import load_policy
 
         if args.env != "PourGym/Pour-v0":
             raise InputError("the scripted policy pours: use --env PourGym/Pour-v0")
-        scripted = ScriptedPourPolicy()
+        if args.policy == "scripted":
+            scripted = ScriptedPourPolicy()
+        else:  # the best of a policy search, trained on the containers it searched on
+            scripted = load_policy(args.policy)
+            trained = json.loads(Path(args.policy).read_text()).get("sources", [])
         policy, reset = scripted, scripted.reset
     else:
         model_path = Path(args.policy)
@@ -488,11 +493,20 @@ def cmd_search(args: argparse.Namespace) -> Output:
     from pour_gym.agents.search import search
 
     doc = search(
-        args.objects, args.generations, args.population, args.episodes, args.seed, args.out
+        args.objects,
+        args.generations,
+        args.population,
+        args.episodes,
+        args.seed,
+        args.out,
+        objective=args.objective,
+        target_amount=args.target_amount,
+        target_objects=args.target_objects,
     )
+    what = "mean return" if doc["objective"] == "return" else "minus the mean error"
     text = (
-        f"mean return {doc['start_return']:.3f} at the hand-set parameters, "
-        f"{doc['best_return']:.3f} at the best found: "
+        f"{what} {doc['start_score']:.3f} at the hand-set parameters, "
+        f"{doc['best_score']:.3f} at the best found: "
         + ", ".join(f"{k}={v:.3g}" for k, v in doc["best"].items())
     )
     return (doc, lambda: text)
@@ -501,8 +515,20 @@ def cmd_search(args: argparse.Namespace) -> Output:
 def cmd_poc(args: argparse.Namespace) -> Output:
     """The thesis's proof of concept, Table 6.1."""
     from pour_gym.agents.poc import poc_table, run_poc
+    from pour_gym.fluid.pbf import PBFConfig
 
-    doc = run_poc(args.target, args.samples, args.seed, out=args.out)
+    target = args.target
+    if args.target_ml is not None:
+        target = round(args.target_ml * 1e-6 / PBFConfig().spacing ** 3)
+    doc = run_poc(
+        target,
+        args.samples,
+        args.seed,
+        out=args.out,
+        policy=args.policy,
+        params=args.params,
+        episodes=args.episodes,
+    )
     return (doc, lambda: poc_table(doc))
 
 
@@ -606,7 +632,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--objects", help="split or comma-separated containers (default: all nine)")
 
     p = add("evaluate", cmd_evaluate, "success, amount error and spill per container")
-    p.add_argument("policy", help="an SB3 model.zip from train.py, or 'scripted'")
+    p.add_argument("policy", help="an SB3 model.zip from train.py, 'scripted', or a search.json")
     p.add_argument("--env", default="PourGym/Pour-v0")
     p.add_argument("--objects", default="all", help="split or comma-separated containers")
     p.add_argument("--episodes", type=int, default=5, help="episodes per container")
@@ -619,12 +645,29 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--episodes", type=int, default=3, help="episodes per candidate")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", help="folder for search.json")
+    p.add_argument(
+        "--objective",
+        choices=("return", "error"),
+        default="return",
+        help="maximise the return, or minimise |poured - target| (particles)",
+    )
+    p.add_argument("--target-amount", type=int, help="pour this many particles every episode")
+    p.add_argument("--target-objects", help="containers to pour into (default: --objects)")
 
     p = add("poc", cmd_poc, "the thesis's proof-of-concept pouring policy (Table 6.1)")
     p.add_argument("--target", type=int, default=20, help="particles to pour (0.125 ml each)")
     p.add_argument("--samples", type=int, default=60, help="red-cup episodes to learn from")
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--out", help="folder for poc_<target>.json")
+    p.add_argument("--target-ml", type=float, help="the target in ml instead (default fluid)")
+    p.add_argument(
+        "--policy",
+        choices=("thesis", "closed-loop"),
+        default="thesis",
+        help="thesis: open-loop tilt and hold; closed-loop: timed by the stream",
+    )
+    p.add_argument("--params", help="search.json of a policy search (closed-loop policy)")
+    p.add_argument("--episodes", type=int, default=1, help="pours per cup (seeds seed, ...)")
+    p.add_argument("--out", help="folder for poc_<policy>_<target>.json")
 
     p = add("demo", cmd_demo, "rebuild a thesis object from a scan, then pour with it (GIF)")
     p.add_argument("--out", default="demo_out")

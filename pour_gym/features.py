@@ -231,7 +231,10 @@ def cavity_points(geometry: ContainerGeometry) -> np.ndarray:
 
 
 def held_volume(
-    geometry: ContainerGeometry, rotation: np.ndarray, points: np.ndarray | None = None
+    geometry: ContainerGeometry,
+    rotation: np.ndarray,
+    points: np.ndarray | None = None,
+    sill: float = 0.0,
 ) -> float:
     """Water a container holds at rest when tilted: its cavity below the lip, m^3.
 
@@ -244,11 +247,14 @@ def held_volume(
         geometry: the container's geometry.
         rotation: (3, 3) container rotation (world = R @ local + t).
         points: :func:`cavity_points` of the geometry, if already computed.
+        sill: how far the level must stand above the lowest rim point before water runs
+            over, m (0 for a continuum; about 1.7 particle diameters for the particle
+            fluid, whose surface particles must clear the rim's crest).
 
     Returns:
         The volume, m^3.
     """
     pts = cavity_points(geometry) if points is None else points
     up = np.asarray(rotation)[2]  # world height of a local point, up to the translation
-    lip = float((geometry.rim_vertices @ up).min())
+    lip = float((geometry.rim_vertices @ up).min()) + sill
     return float(np.count_nonzero(pts @ up < lip)) * geometry.cavity.voxel**3

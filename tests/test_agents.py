@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from pour_gym.agents.evaluate import evaluate_policy
-from pour_gym.agents.search import search
+from pour_gym.agents.search import PARAMETERS, search
 from pour_gym.agents.training import hyperparameters
 from pour_gym.errors import InputError
 
@@ -64,8 +64,11 @@ def test_evaluate_and_search_at_tiny_size():
     row = result["rows"][0]
     assert row["object"] == "red_cup" and row["amount_error"] is not None
     doc = search("train", generations=1, population=2, episodes=1, env_kwargs=small)
-    assert set(doc["best"]) == {"lip_offset", "slow_rate", "lead", "flow"}
-    assert doc["best_return"] >= max(h["best"] for h in doc["history"]) - 1e-9
+    assert set(doc["best"]) == {name for name, _, _ in PARAMETERS}
+    assert doc["best_score"] >= max(h["best"] for h in doc["history"]) - 1e-9
+    assert doc["best_score"] >= doc["start_score"]
+    with pytest.raises(InputError, match="objective"):
+        search("train", objective="speed")
 
 
 def test_poc_at_tiny_size():
@@ -82,3 +85,27 @@ def test_poc_at_tiny_size():
                         "inside", "outside"}  # fmt: skip
     assert row["inside"] + row["outside"] == row["outcome"]
     assert 0.0 <= row["delta_deg"] <= 120.0 and "thesis" in poc_table(doc)
+
+
+def test_fit_sill_finds_the_onset_of_synthetic_pours():
+    from pour_gym.agents.poc import fit_sill
+
+    # f4 = (delta - 40) - 1000 * sill particles; pours ran from 47.6 degrees on.
+    deltas = np.linspace(40.0, 60.0, 41)
+    poured = np.where(deltas > 47.6, 5, 0)
+    sill = fit_sill(deltas, poured, lambda d, s: (d - 40.0) - 1000.0 * s)
+    assert sill == pytest.approx(0.0075, abs=0.0005)
+
+
+def test_closed_loop_poc_pours_twenty_particles():
+    """The closed-loop pour (the features' stream times the tilt) hits 20 particles
+    within 3 on a cup it was tuned on and on one it never saw, and spills nothing."""
+    from pour_gym.agents.poc import run_poc
+
+    doc = run_poc(target=20, policy="closed-loop", objects=("red_cup", "very_small_cup"))
+    assert [r["object"] for r in doc["rows"]] == ["red_cup", "very_small_cup"]
+    for row in doc["rows"]:
+        assert row["error"] <= 3 and row["outside"] == 0, row
+        assert 30.0 < row["delta_deg"] < 90.0 and row["duration_s"] > 0.0, row
+    with pytest.raises(InputError, match="policy"):
+        run_poc(policy="open")

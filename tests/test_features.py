@@ -97,3 +97,20 @@ def test_density_and_count_volumes_agree_on_resting_fluid(shape):
     assert density_volume(pts, 0.5 * h) == pytest.approx(counted, rel=0.05)
     # With the thesis's sigma (1 cm, twice this spacing) the estimate is far off.
     assert density_volume(pts, 0.01) > 1.4 * counted
+
+
+def test_a_sill_raises_the_held_volume_by_the_free_surface_times_its_height(red):
+    """Tilted 45 deg, raising the level by s adds the water surface's area times s."""
+    from pour_gym.features import cavity_points, held_volume
+
+    _, g = red
+    pts = cavity_points(g)
+    rot = Rotation.from_euler("y", 45, degrees=True).as_matrix()
+    up = rot[2]
+    lip = float((g.rim_vertices @ up).min())
+    # The free surface's area, from the cavity voxels in a 1 mm slab at the lip level.
+    slab = np.count_nonzero(np.abs(pts @ up - (lip + 0.0025)) < 0.0005) * g.cavity.voxel**3
+    area = slab / 0.001
+    added = held_volume(g, rot, pts, sill=0.005) - held_volume(g, rot, pts)
+    assert added == pytest.approx(area * 0.005, rel=0.15)
+    assert held_volume(g, rot, pts, sill=0.0) == held_volume(g, rot, pts)
