@@ -49,12 +49,12 @@ class ScriptedPourPolicy:
 
     lip_offset: float = 0.6
     position_tolerance: float = 0.004
-    slow_rate: float = 0.12
-    lead: float = 0.5
+    slow_rate: float = 0.06
+    lead: float = 1.0
     share: float = 0.15
-    min_flow: float = 0.05
+    min_flow: float = 0.02
     gain: float = 2.0
-    back_rate: float = 1.0
+    back_rate: float = 0.3
     max_speed: float = 0.5
     amount: int | None = None
     min_particles: float = 1.5

@@ -505,7 +505,7 @@ def cmd_search(args: argparse.Namespace) -> Output:
     )
     what = "mean return" if doc["objective"] == "return" else "minus the mean error"
     text = (
-        f"{what} {doc['start_score']:.3f} at the hand-set parameters, "
+        f"{what} {doc['start_score']:.3f} at the starting parameters, "
         f"{doc['best_score']:.3f} at the best found: "
         + ", ".join(f"{k}={v:.3g}" for k, v in doc["best"].items())
     )
