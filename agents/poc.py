@@ -26,6 +26,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 from tqdm import tqdm
 
+from pour_gym.agents.scripted import approach_lip
 from pour_gym.envs.pour import FEATURE_NAMES, UPRIGHT_DEG
 from pour_gym.errors import InputError
 from pour_gym.features import cavity_points, held_volume
@@ -81,11 +82,9 @@ class TiltHoldPolicy:
         a = np.zeros(4)
         tilt = o[_I["tilt"]] * 90.0
         if self.phase == "move":
-            r_t = o[_I["target_rim_radius"]] * 0.1
-            ex, ey = (o[_I["lip_dx"]] - self.lip_offset) * r_t, o[_I["lip_dy"]] * r_t
             self._speed = min(self._speed + 0.1, 0.5)
-            a[:3] = np.clip([ex / 0.03, ey / 0.03, -1.0], -1, 1) * self._speed
-            if np.hypot(ex, ey) < 0.004:
+            a, distance = approach_lip(o, self.lip_offset, self._speed)
+            if distance < 0.004:
                 self.phase = "tilt"
             return a
         if self.phase == "tilt":

@@ -22,6 +22,27 @@ from pour_gym.envs.pour import FEATURE_NAMES
 _I = {name: k for k, name in enumerate(FEATURE_NAMES)}
 
 
+def approach_lip(obs: np.ndarray, lip_offset: float, speed: float) -> tuple[np.ndarray, float]:
+    """Move the lip towards its pouring point over the target, and down.
+
+    A proportional approach (full speed beyond 3 cm) scaled by ``speed`` in [0, 1], so that
+    a full source does not slosh over; down to the lowest allowed height.
+
+    Args:
+        obs: a features observation.
+        lip_offset: the pouring point, in target rim radii before the rim centre.
+        speed: the lip speed as an action in [0, 1].
+
+    Returns:
+        The action (tilt rate 0) and the lip's horizontal distance to the point, m.
+    """
+    r_t = obs[_I["target_rim_radius"]] * 0.1
+    ex, ey = (obs[_I["lip_dx"]] - lip_offset) * r_t, obs[_I["lip_dy"]] * r_t
+    action = np.zeros(4)
+    action[:3] = np.clip([ex / 0.03, ey / 0.03, -1.0], -1.0, 1.0) * speed
+    return action, float(np.hypot(ex, ey))
+
+
 @dataclass
 class ScriptedPourPolicy:
     """Pour by the features (``obs_mode="features"`` observations of Pour-v0).
@@ -71,20 +92,14 @@ class ScriptedPourPolicy:
     def __call__(self, obs: np.ndarray) -> np.ndarray:
         """The action for one features observation."""
         o = np.asarray(obs, dtype=np.float64)
-        r_t = o[_I["target_rim_radius"]] * 0.1
-        action = np.zeros(4)
         if self.phase == "move":
-            ex = (o[_I["lip_dx"]] - self.lip_offset) * r_t
-            ey = o[_I["lip_dy"]] * r_t
-            # A proportional approach at up to half the speed limit, and a gentle start,
-            # so that a full source does not slosh over; down to the lowest height.
+            # A gentle start, so that a full source does not slosh over.
             self._speed = min(self._speed + 0.1, self.max_speed)
-            action[0] = np.clip(ex / 0.03, -1.0, 1.0) * self._speed
-            action[1] = np.clip(ey / 0.03, -1.0, 1.0) * self._speed
-            action[2] = -self._speed
-            if np.hypot(ex, ey) < self.position_tolerance:
+            action, distance = approach_lip(o, self.lip_offset, self._speed)
+            if distance < self.position_tolerance:
                 self.phase = "tilt"
             return action
+        action = np.zeros(4)
         # What has left the source, as a running maximum: a particle flickering across
         # the lip in and out of the source's cavity counts once (its +1/-1 as a flow
         # would tilt the source back at every other step and stall the pour).
