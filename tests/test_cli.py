@@ -3,6 +3,7 @@
 import json
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -89,3 +90,17 @@ def test_measure_needs_a_watertight_mesh(tmp_path):
     assert proc.returncode == 2 and "not watertight" in proc.stderr
     doc = json.loads(run("measure", "standard_bowl", "--json").stdout)
     assert doc["volume"] == pytest.approx(1038e-6, rel=0.01)
+
+
+def test_evaluate_runs_a_searched_policy_and_rejects_other_json(tmp_path):
+    # The packaged red-cup search.
+    searched = str(Path(__file__).resolve().parents[1] / "agents/poc_search_red_cup_20.json")
+    doc = json.loads(run("evaluate", searched, "--objects", "red_cup", "--episodes", "1",
+                         "--json").stdout)  # fmt: skip
+    row = doc["rows"][0]
+    assert row["object"] == "red_cup" and row["trained_on"] is True
+    assert 0.0 <= row["success"] <= 1.0 and row["amount_error"] >= 0.0
+    bad = tmp_path / "not_a_search.json"
+    bad.write_text("{}")
+    proc = run("evaluate", str(bad), "--objects", "red_cup", check=False)
+    assert proc.returncode == 2 and "search.json" in proc.stderr
