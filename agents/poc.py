@@ -101,29 +101,33 @@ class TiltHoldPolicy:
         return a
 
 
-def f4_particles(env, delta: float, points: np.ndarray, sill: float = 0.0) -> float:
+def f4_particles(
+    env, delta: float, points: np.ndarray, sill: float | np.ndarray = 0.0
+) -> float | np.ndarray:
     """Thesis f4 in particles: the source's fill above its lip when tilted by ``delta`` deg.
 
     Quasi-static (hydrostatic): the fill less what the tilted cavity holds below its lowest
-    rim point raised by ``sill`` m (:func:`pour_gym.features.held_volume`); negative while
-    the level is below. ``points`` are the source's :func:`pour_gym.features.cavity_points`.
+    rim point raised by ``sill`` m (:func:`pour_gym.features.held_volume`; an array of
+    sills gives an array); negative while the level is below. ``points`` are the source's
+    :func:`pour_gym.features.cavity_points`.
     """
     u = env.unwrapped
     rot = Rotation.from_euler("y", delta, degrees=True).as_matrix() @ u._base_rot
     held = held_volume(u.source.asset.geometry, rot, points, sill) / u.world.particle_volume
-    return float(u.fill - held)
+    return u.fill - held
 
 
 def fit_sill(deltas: np.ndarray, poured: np.ndarray, f4_of) -> float:
     """The sill (m) whose hydrostatic onset best separates pours that ran from the rest.
 
     The sill with the fewest samples where (f4 > 0) != (poured > 0), the smallest of
-    equals; ``f4_of(delta, sill)`` gives f4 in particles at a tilt of ``delta`` deg.
+    equals; ``f4_of(delta, sills)`` gives f4 in particles at a tilt of ``delta`` deg for
+    an array of sills.
     """
     sills = np.arange(0.0, 0.02, 0.0005)
     ran = np.asarray(poured) > 0
-    wrong = [np.count_nonzero((np.array([f4_of(d, s) for d in deltas]) > 0) != ran)
-             for s in sills]  # fmt: skip
+    pours = np.array([f4_of(d, sills) > 0 for d in deltas])  # (samples, sills)
+    wrong = np.count_nonzero(pours != ran[:, None], axis=0)
     return float(sills[int(np.argmin(wrong))])
 
 

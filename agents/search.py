@@ -57,19 +57,24 @@ def to_policy(u: np.ndarray, amount: int | None = None) -> ScriptedPourPolicy:
     return ScriptedPourPolicy(**kwargs, amount=amount)
 
 
-def load_policy(path, amount: int | None = None) -> ScriptedPourPolicy:
-    """The best policy of a ``search.json`` written by :func:`search`.
+def load_search(path) -> dict:
+    """A ``search.json`` written by :func:`search` (a path, or a resource with ``read_text``).
 
-    Args:
-        path: the file (a path, or a packaged resource with ``read_text``).
-        amount: the target amount in particles, if known (see ``ScriptedPourPolicy``).
+    Raises:
+        InputError: the file is missing or holds no search result.
     """
     source = path if hasattr(path, "read_text") else Path(path)
     try:
-        best = json.loads(source.read_text())["best"]
-    except (OSError, ValueError, KeyError) as err:
+        doc = json.loads(source.read_text())
+        ScriptedPourPolicy(**doc["best"])
+    except (OSError, ValueError, KeyError, TypeError) as err:
         raise InputError(f"{path} is not a search.json from `pour-gym search` ({err})") from err
-    return ScriptedPourPolicy(**best, amount=amount)
+    return doc
+
+
+def load_policy(path, amount: int | None = None) -> ScriptedPourPolicy:
+    """The best policy of a ``search.json`` (``amount``: the target amount, if known)."""
+    return ScriptedPourPolicy(**load_search(path)["best"], amount=amount)
 
 
 def episode_returns(

@@ -446,15 +446,16 @@ def cmd_evaluate(args: argparse.Namespace) -> Output:
     reset = None
     if args.policy == "scripted" or args.policy.endswith(".json"):
         from pour_gym.agents.scripted import ScriptedPourPolicy
-        from pour_gym.agents.search import load_policy
+        from pour_gym.agents.search import load_search
 
         if args.env != "PourGym/Pour-v0":
             raise InputError("the scripted policy pours: use --env PourGym/Pour-v0")
         if args.policy == "scripted":
             scripted = ScriptedPourPolicy()
         else:  # the best of a policy search, trained on the containers it searched on
-            scripted = load_policy(args.policy)
-            trained = json.loads(Path(args.policy).read_text()).get("sources", [])
+            found = load_search(args.policy)
+            scripted = ScriptedPourPolicy(**found["best"])
+            trained = found.get("sources", [])
         policy, reset = scripted, scripted.reset
     else:
         model_path = Path(args.policy)
@@ -519,7 +520,7 @@ def cmd_poc(args: argparse.Namespace) -> Output:
 
     target = args.target
     if args.target_ml is not None:
-        target = round(args.target_ml * 1e-6 / PBFConfig().spacing ** 3)
+        target = round(args.target_ml * 1e-6 / PBFConfig().particle_volume)
     doc = run_poc(
         target,
         args.samples,

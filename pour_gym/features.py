@@ -234,8 +234,8 @@ def held_volume(
     geometry: ContainerGeometry,
     rotation: np.ndarray,
     points: np.ndarray | None = None,
-    sill: float = 0.0,
-) -> float:
+    sill: float | np.ndarray = 0.0,
+) -> float | np.ndarray:
     """Water a container holds at rest when tilted: its cavity below the lip, m^3.
 
     In the quasi-static limit (a slow tilt) water fills the container up to a level
@@ -249,12 +249,16 @@ def held_volume(
         points: :func:`cavity_points` of the geometry, if already computed.
         sill: how far the level must stand above the lowest rim point before water runs
             over, m (0 for a continuum; about 1.7 particle diameters for the particle
-            fluid, whose surface particles must clear the rim's crest).
+            fluid, whose surface particles must clear the rim's crest); an array gives
+            the volume for each sill at the cost of one sort.
 
     Returns:
-        The volume, m^3.
+        The volume, m^3 (an array of them for an array of sills).
     """
     pts = cavity_points(geometry) if points is None else points
     up = np.asarray(rotation)[2]  # world height of a local point, up to the translation
-    lip = float((geometry.rim_vertices @ up).min()) + sill
-    return float(np.count_nonzero(pts @ up < lip)) * geometry.cavity.voxel**3
+    above_lip = pts @ up - float((geometry.rim_vertices @ up).min())
+    voxel_volume = geometry.cavity.voxel**3
+    if np.ndim(sill) == 0:
+        return float(np.count_nonzero(above_lip < sill)) * voxel_volume
+    return np.searchsorted(np.sort(above_lip), np.asarray(sill), side="left") * voxel_volume
