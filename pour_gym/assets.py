@@ -29,9 +29,10 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from pour_gym.errors import InputError
-from pour_gym.features import ContainerGeometry, container_geometry
-from pour_gym.fileio import load_mesh, validate_mesh
+from pour_gym.errors import ClosedContainerError, InputError, NoWaterError
+from pour_gym.features import ContainerGeometry, container_cavity, container_geometry
+from pour_gym.fileio import MESH_SUFFIXES, load_mesh, validate_mesh
+from pour_gym.measure import opening_problem
 from pour_gym.objects import OBJECT_NAMES, ContainerModel, build_object
 from pour_gym.parts import PART_NAMES, Part
 from pour_gym.warp.frame import canonical_frame
@@ -119,6 +120,32 @@ class LabelledAsset:
     meta: dict
 
 
+# What an asset's numbers mean: coordinates to 0.1 micrometre (the OBJ's 7 decimals in m);
+# transform entries within this of 0 or +-1 are those values (floating-point dust otherwise,
+# which differs between CPUs and BLAS builds).
+COORDINATE_DECIMALS = 7
+SNAP = 1e-12
+
+
+def canonical_coordinates(values: np.ndarray) -> np.ndarray:
+    """Values rounded to 0.1 micrometre, with no negative zero.
+
+    The same asset rebuilt on another machine then writes the same text wherever the
+    machines agree to 0.1 micrometre (a ``-0.0000000`` would otherwise differ from
+    ``0.0000000`` by a sign of floating-point dust).
+    """
+    # Adding +0.0 turns -0.0 into +0.0 (IEEE 754), after rounding made it.
+    return np.round(np.asarray(values, dtype=np.float64), COORDINATE_DECIMALS) + 0.0
+
+
+def canonical_transform(transform: np.ndarray) -> np.ndarray:
+    """A rigid transform with entries within 1e-12 of 0, 1 or -1 snapped to them."""
+    t = np.array(transform, dtype=np.float64)
+    for value in (0.0, 1.0, -1.0):
+        t[np.abs(t - value) < SNAP] = value
+    return t + 0.0
+
+
 def part_iou(predicted: np.ndarray, truth: np.ndarray) -> dict[str, float | None]:
     """Intersection over union of each part's vertex set (None where neither has the part)."""
     out: dict[str, float | None] = {}
@@ -159,11 +186,20 @@ def _source_model(source: str) -> ContainerModel:
     return build_object(source)
 
 
+def _transfer(src: ContainerModel, mesh: trimesh.Trimesh, method: str, upright: bool):
+    """Labels of ``mesh`` warped from ``src`` by ``method``, and the mesh's canonical frame."""
+    if method == "best":
+        result = transfer_best(src.mesh, src.labels, mesh, target_upright=upright)
+        return result, result.frame
+    return transfer_thesis(src.mesh, src.labels, mesh), canonical_frame(mesh, upright=upright)
+
+
 def label_container(
     target: str | Path | trimesh.Trimesh,
     source: str = "red_cup",
     method: str = "best",
     scale: float = 1.0,
+    allow_closed: bool = False,
 ) -> LabelledAsset:
     """Label a container's parts by warping a labelled source onto it.
 
@@ -173,6 +209,8 @@ def label_container(
         source: the labelled thesis object to warp from.
         method: ``"best"`` or ``"thesis"`` (see :mod:`pour_gym.warp.transfer`).
         scale: factor to metres for mesh files.
+        allow_closed: label a container whose opening is closed (a capped scan) anyway;
+            its asset records why it looks closed, and environments refuse it.
 
     Returns:
         The labelled asset, in its canonical frame.
@@ -180,6 +218,7 @@ def label_container(
     Raises:
         InputError: unknown names, a method other than the two, a degenerate or tiny mesh,
             a mesh that holds no water.
+        ClosedContainerError: the container has no opening (unless ``allow_closed``).
     """
     if method not in ("best", "thesis"):
         raise InputError(f"unknown method {method!r}; use 'best' or 'thesis'")
@@ -187,24 +226,36 @@ def label_container(
     name, mesh, truth = resolve_target(target, scale)
     validate_mesh(mesh, name=name)
     src = _source_model(source)
-    if method == "best":
-        result = transfer_best(src.mesh, src.labels, mesh)
-        frame = result.frame
-    else:
-        result = transfer_thesis(src.mesh, src.labels, mesh)
-        frame = canonical_frame(mesh)
+    # A mesh that holds no water however it is turned has no opening to find "up" by: with
+    # allow_closed it is taken as it stands (its +z up), and labelled anyway.
+    try:
+        result, frame = _transfer(src, mesh, method, upright=False)
+    except NoWaterError:
+        if not allow_closed:
+            raise ClosedContainerError(name, "it holds no water however it is turned") from None
+        result, frame = _transfer(src, mesh, method, upright=True)
     assert frame is not None
-    placed = trimesh.Trimesh(frame.apply(np.asarray(mesh.vertices)), mesh.faces, process=False)
+    transform = canonical_transform(frame.transform)
+    moved = np.asarray(mesh.vertices) @ transform[:3, :3].T + transform[:3, 3]
+    placed = trimesh.Trimesh(canonical_coordinates(moved), mesh.faces, process=False)
+    water = container_cavity(placed)
+    closed = opening_problem(water, placed)
+    if closed is not None and not allow_closed:
+        raise ClosedContainerError(name, closed)
     labels = result.labels.astype(np.int8)
-    geometry = container_geometry(placed, labels)
+    try:
+        geometry = container_geometry(placed, labels, water=water)
+    except InputError as exc:  # what the warp found on a mesh with no cavity to map onto
+        raise InputError(f"{name} could not be labelled: {exc}") from None
     meta: dict = {
         "name": name,
         "labels": PART_NAMES,
         **geometry.to_dict(),
-        "transform": frame.transform.tolist(),
+        "transform": transform.tolist(),
         "watertight": bool(mesh.is_watertight),
         "vertices": len(mesh.vertices),
         "source": {"object": source, "method": method, "transfer": result.info},
+        "closed": closed,
         "seconds": time.perf_counter() - t0,
     }
     if truth is not None:
@@ -228,9 +279,13 @@ def write_asset(asset: LabelledAsset, out: str | Path, picture: bool = True) -> 
     """
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    # Fixed precision and no normals keep the files small and rebuilds byte-identical.
+    # Canonical coordinates at fixed precision and no normals: small files, and a rebuild
+    # on the same machine writes the same bytes.
+    mesh = trimesh.Trimesh(
+        canonical_coordinates(asset.mesh.vertices), asset.mesh.faces, process=False
+    )
     obj = trimesh.exchange.obj.export_obj(
-        asset.mesh, include_normals=False, include_texture=False, digits=7
+        mesh, include_normals=False, include_texture=False, digits=COORDINATE_DECIMALS
     )
     (out / "mesh.obj").write_text(obj)
     np.save(out / "labels.npy", asset.labels)
@@ -277,6 +332,22 @@ def load_asset(name_or_dir: str | Path) -> LabelledAsset:
     )
 
 
+def check_open(asset: LabelledAsset, spec: str | Path | None = None) -> LabelledAsset:
+    """The asset, if its container has an opening (environments pour only into those).
+
+    Raises:
+        ClosedContainerError: the container looks closed, whatever it was labelled with.
+    """
+    closed = opening_problem(asset.geometry.cavity, asset.mesh)
+    if closed is not None:
+        raise ClosedContainerError(str(spec or asset.name), closed, flag=False)
+    return asset
+
+
+# Bumped when labelling a file gives another result for the same bytes (the cache of
+# labelled user meshes is keyed by both). 2: STL corners joined into shared vertices.
+LABELLING_VERSION = 2
+
 # Containers by split, for environments: the thesis trained on the red cup alone and
 # tested on its other eight objects.
 SPLITS: dict[str, tuple[str, ...]] = {
@@ -285,7 +356,6 @@ SPLITS: dict[str, tuple[str, ...]] = {
     "all": tuple(OBJECT_NAMES),
     "real": (PYBULLET_MUG, *REAL_MESHES),
 }
-MESH_SUFFIXES = (".obj", ".stl", ".ply", ".glb", ".gltf", ".off")
 
 
 def expand_containers(spec: str | Path | list | tuple) -> tuple[str, ...]:
@@ -349,7 +419,7 @@ def resolve_asset(spec: str | Path, cache_dir: str | Path | None = None) -> Labe
 
     from pour_gym.cache import cache_dir as user_cache
 
-    digest = hashlib.sha256(p.read_bytes()).hexdigest()[:16]
+    digest = hashlib.sha256(p.read_bytes() + f"v{LABELLING_VERSION}".encode()).hexdigest()[:16]
     root = Path(cache_dir) if cache_dir is not None else user_cache("assets")
     target = root / f"{p.stem}_{digest}"
     if not (target / "meta.json").is_file():
@@ -365,3 +435,42 @@ def resolve_asset(spec: str | Path, cache_dir: str | Path | None = None) -> Labe
         except OSError:  # another process got there first
             shutil.rmtree(tmp, ignore_errors=True)
     return load_asset(target)
+
+
+def warping_tables(reports: dict[str, dict]) -> str:
+    """Tables 4.1-4.3 and per-part IoU beside the thesis's numbers."""
+    out = []
+    for key, title, unit, factor in (
+        ("height", "Table 4.1: height", "cm", 100.0),
+        ("rim_radius", "Table 4.2: rim radius", "cm", 100.0),
+        ("volume", "Table 4.3: volume (cavity below the rim)", "ml", 1e6),
+        ("volume_convex_hull", "Table 4.3: volume (convex hull, thesis 5.1)", "ml", 1e6),
+    ):
+        out.append(f"### {title}\n")
+        out.append(
+            f"| object | real {unit} | thesis {unit} | thesis error | thesis method {unit} "
+            f"| error | best {unit} | error |"
+        )
+        out.append("|---|---:|---:|---:|---:|---:|---:|---:|")
+        errs = np.zeros(3)
+        for name, by_method in reports.items():
+            t = by_method["thesis"]["tables"][key]
+            b = by_method["best"]["tables"][key]
+            errs += [t["thesis_rel_error"], t["rel_error"], b["rel_error"]]
+            out.append(
+                f"| {name} | {t['real'] * factor:.2f} | {t['thesis_computed'] * factor:.2f} | "
+                f"{t['thesis_rel_error']:.1%} | {t['computed'] * factor:.2f} | "
+                f"{t['rel_error']:.1%} | {b['computed'] * factor:.2f} | {b['rel_error']:.1%} |"
+            )
+        m = errs / len(reports)
+        out.append(f"| **mean** | | | **{m[0]:.1%}** | | **{m[1]:.1%}** | | **{m[2]:.1%}** |\n")
+    out.append("### Per-part IoU against ground truth (thesis method / best)\n")
+    out.append("| object | rim | handle | container | outside |")
+    out.append("|---|---:|---:|---:|---:|")
+    for name, by_method in reports.items():
+        cells = []
+        for part in ("rim", "handle", "container", "outside"):
+            pair = (by_method["thesis"]["iou"][part], by_method["best"]["iou"][part])
+            cells.append(" / ".join("-" if v is None else f"{v:.2f}" for v in pair))
+        out.append(f"| {name} | " + " | ".join(cells) + " |")
+    return "\n".join(out)

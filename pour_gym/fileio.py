@@ -118,7 +118,8 @@ def load_mesh(path: str | Path, scale: float = 1.0) -> trimesh.Trimesh:
         scale: factor applied to the coordinates (0.001 turns millimetres into metres).
 
     Returns:
-        The mesh in m, unprocessed (no merging or reordering of vertices).
+        The mesh in m, unprocessed (no merging or reordering of vertices), except that an
+        STL's equal triangle corners become shared vertices (the format repeats them).
 
     Raises:
         InputError: missing file, unsupported format, no triangles.
@@ -130,9 +131,26 @@ def load_mesh(path: str | Path, scale: float = 1.0) -> trimesh.Trimesh:
         raise InputError(f"cannot read mesh {path.name}: {exc}") from None
     if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
         raise InputError(f"{path.name} contains no triangles")
+    if path.suffix.lower() == ".stl":
+        loaded = _shared_corners(loaded)
     if scale != 1.0:
         loaded.apply_scale(scale)
     return loaded
+
+
+def _shared_corners(mesh: trimesh.Trimesh) -> trimesh.Trimesh:
+    """An STL's triangles with equal corners joined into shared vertices.
+
+    STL stores every triangle's three corners apart, so read as it stands no mesh is
+    watertight; the vertices keep the order of their first appearance.
+    """
+    v = np.asarray(mesh.vertices)
+    _, first, inverse = np.unique(v, axis=0, return_index=True, return_inverse=True)
+    order = np.argsort(first)
+    rank = np.empty_like(order)
+    rank[order] = np.arange(len(order))
+    faces = rank[inverse.ravel()][np.asarray(mesh.faces)]
+    return trimesh.Trimesh(v[first[order]], faces, process=False)
 
 
 def validate_mesh(mesh: trimesh.Trimesh, name: str = "mesh", watertight: bool = False) -> None:

@@ -36,12 +36,14 @@ class ContainerDimensions:
         rim_radius: mean distance of the rim band's vertices to their centre, in m.
         rim_center: (3,) centre of the top band, in m.
         volume: holding volume up to the overflow level, in m^3.
+        closed: why the container looks closed (:func:`opening_problem`), None if open.
     """
 
     height: float
     rim_radius: float
     rim_center: tuple[float, float, float]
     volume: float
+    closed: str | None = None
 
 
 def top_band_rim(
@@ -122,6 +124,37 @@ def rim_band_mask(
     return mask, float(top[valid].mean())
 
 
+# Sub-micrometre offsets of the vertical rays off the voxel columns' centres, m: the first
+# that gives a column an even number of crossings is used.
+RAY_OFFSETS = ((1.234567e-7, 2.345678e-7), (3.1e-7, -1.7e-7), (-2.3e-7, 4.1e-7), (4.7e-7, 3.3e-7))
+
+
+def _column_crossings(
+    scene, x: np.ndarray, y: np.ndarray, z0: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Where upward rays from (x, y, z0) cross a surface.
+
+    Hits on the shared edge of two triangles come twice at the same depth: kept once.
+
+    Returns:
+        ``(counts, splits, t)``: crossings per ray, offsets of each ray's run in ``t``, and
+        the heights above ``z0`` (m), sorted within each ray.
+    """
+    rays = np.zeros((len(x), 6), dtype=np.float32)
+    rays[:, 0], rays[:, 1], rays[:, 2], rays[:, 5] = x, y, z0, 1.0
+    hits = scene.list_intersections(open3d().core.Tensor(rays))
+    splits = hits["ray_splits"].numpy().astype(np.int64)
+    t_hit = hits["t_hit"].numpy().astype(np.float64)
+    ray_of_hit = np.repeat(np.arange(len(rays)), np.diff(splits))
+    order = np.lexsort((t_hit, ray_of_hit))
+    t_hit, ray_of_hit = t_hit[order], ray_of_hit[order]
+    dup = np.zeros(len(t_hit), dtype=bool)
+    dup[1:] = (ray_of_hit[1:] == ray_of_hit[:-1]) & (np.diff(t_hit) < 1e-7)
+    t_hit, ray_of_hit = t_hit[~dup], ray_of_hit[~dup]
+    counts = np.bincount(ray_of_hit, minlength=len(rays))
+    return counts, np.concatenate([[0], np.cumsum(counts)]), t_hit
+
+
 def occupancy_grid(
     mesh: trimesh.Trimesh, voxel: float, pad: int = 2
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -141,7 +174,7 @@ def occupancy_grid(
 
     Raises:
         InputError: more than 1 % of the columns cross the surface an odd number of times
-            (the mesh has holes).
+            at every offset tried (the mesh has holes).
     """
     o3d = open3d()
     lo, hi = mesh.bounds
@@ -149,45 +182,46 @@ def occupancy_grid(
     shape = np.ceil((hi - lo) / voxel).astype(int) + 2 * pad
     xs = origin[0] + voxel * np.arange(shape[0])
     ys = origin[1] + voxel * np.arange(shape[1])
-    gx, gy = np.meshgrid(xs, ys, indexing="ij")
-    # A column that runs exactly along a mesh edge is hit by both of its triangles; an offset
-    # far below the voxel size keeps the columns off the (often axis-aligned) edges.
-    gx, gy = gx + 1.234567e-7, gy + 2.345678e-7
+    gx, gy = (g.ravel() for g in np.meshgrid(xs, ys, indexing="ij"))
     z0 = origin[2] - voxel
-    rays = np.zeros((gx.size, 6), dtype=np.float32)
-    rays[:, 0], rays[:, 1], rays[:, 2] = gx.ravel(), gy.ravel(), z0
-    rays[:, 5] = 1.0
     scene = o3d.t.geometry.RaycastingScene()
     scene.add_triangles(
         o3d.core.Tensor(np.asarray(mesh.vertices, dtype=np.float32)),
         o3d.core.Tensor(np.asarray(mesh.faces, dtype=np.uint32)),
     )
-    hits = scene.list_intersections(o3d.core.Tensor(rays))
-    splits = hits["ray_splits"].numpy().astype(np.int64)
-    t_hit = hits["t_hit"].numpy().astype(np.float64)
-    ray_of_hit = np.repeat(np.arange(len(rays)), np.diff(splits))
-    order = np.lexsort((t_hit, ray_of_hit))
-    t_hit, ray_of_hit = t_hit[order], ray_of_hit[order]
-    # Hits on the shared edge of two triangles come twice at the same depth: keep one.
-    dup = np.zeros(len(t_hit), dtype=bool)
-    dup[1:] = (ray_of_hit[1:] == ray_of_hit[:-1]) & (np.diff(t_hit) < 1e-7)
-    t_hit, ray_of_hit = t_hit[~dup], ray_of_hit[~dup]
-    counts = np.bincount(ray_of_hit, minlength=len(rays))
-    splits = np.concatenate([[0], np.cumsum(counts)])
-    odd = counts % 2 == 1
-    if odd.mean() > 0.01:
-        raise InputError(
-            f"the mesh is not closed: {odd.mean():.1%} of vertical rays cross its surface an "
-            "odd number of times; repair it (e.g. trimesh.repair.fill_holes) or pass a "
-            "watertight mesh"
-        )
+    # A column that runs exactly along a mesh edge or through a vertex may be counted by
+    # both triangles or by neither (float32 ray casting differs between CPUs here); an
+    # offset far below the voxel keeps columns off the (often axis-aligned) edges, and a
+    # column with an odd count is cast again at other offsets before it is given up.
     zc = origin[2] + voxel * np.arange(shape[2]) - z0  # voxel centres as ray parameters
     occupied = np.zeros(shape, dtype=bool)
     flat = occupied.reshape(-1, shape[2])
-    for ray in np.flatnonzero((counts >= 2) & ~odd):
-        t = t_hit[splits[ray] : splits[ray + 1]]
-        inside = np.searchsorted(t, zc) % 2 == 1
-        flat[ray] = inside
+    todo = np.arange(len(gx))
+    for dx, dy in RAY_OFFSETS:
+        counts, splits, t = _column_crossings(scene, gx[todo] + dx, gy[todo] + dy, z0)
+        even = counts % 2 == 0
+        for k in np.flatnonzero(even & (counts >= 2)):
+            flat[todo[k]] = np.searchsorted(t[splits[k] : splits[k + 1]], zc) % 2 == 1
+        todo = todo[~even]
+        if len(todo) == 0:
+            break
+    if len(todo) > 0.01 * len(gx):
+        raise InputError(
+            f"the mesh is not closed: {len(todo) / len(gx):.1%} of vertical rays cross its "
+            "surface an odd number of times; repair it (e.g. trimesh.repair.fill_holes) or "
+            "pass a watertight mesh"
+        )
+    unread = np.zeros(shape[:2], dtype=bool)
+    unread.flat[todo] = True
+    # A column no offset could read (a hole in the mesh) takes a neighbour's: left empty,
+    # it would be a shaft through the wall that the water escapes by.
+    for ray in todo:
+        i, j = divmod(int(ray), shape[1])
+        for di, dj in ((-1, 0), (1, 0), (0, -1), (0, 1)):
+            ni, nj = i + di, j + dj
+            if 0 <= ni < shape[0] and 0 <= nj < shape[1] and not unread[ni, nj]:
+                occupied[i, j] = occupied[ni, nj]
+                break
     return occupied, origin
 
 
@@ -265,12 +299,15 @@ class Cavity:
         origin: centre of voxel (0, 0, 0), in m.
         voxel: voxel edge, in m.
         level: height of the water surface (top of the highest water layer), in m.
+        overflows: raising the level far enough lets the water out over a rim (False for
+            a container whose opening is closed: its inside is sealed at every level).
     """
 
     mask: np.ndarray
     origin: np.ndarray
     voxel: float
     level: float
+    overflows: bool = True
 
     @property
     def volume(self) -> float:
@@ -322,6 +359,9 @@ def cavity_from_grid(
     ok, water = _holds_water(empty, seed, lo)
     if not ok:
         return nothing
+    sealed, region = _holds_water(empty, seed, hi)
+    if sealed:  # no level lets it out: the opening is closed (a cap over the rim)
+        return Cavity(region, origin, voxel, float(origin[2] + (hi - 0.5) * voxel), False)
     while hi - lo > 1:
         mid = (lo + hi) // 2
         holds, region = _holds_water(empty, seed, mid)
@@ -360,6 +400,39 @@ def _cavity_below_rim(
     return cavity_from_grid(occupied, origin, voxel, (int(ij[0]), int(ij[1])))
 
 
+# An open container holds a good part of its outer volume; a sealed scan turned upside down
+# "holds" only the dent in its base (the YCB pitcher: 5 ml of 2 litres).
+MIN_CAVITY_SHARE = 0.05
+
+
+def opening_problem(water: Cavity, mesh: trimesh.Trimesh) -> str | None:
+    """Why an upright container looks closed (no opening at its top), or None if it is open.
+
+    Two signs: the water never overflows however high it stands (the inside is sealed),
+    or the cavity is a tiny share of the mesh's convex hull (the search for "up" found a
+    dent in the outside of a sealed body, not the inside).
+
+    Args:
+        water: the container's cavity, upright.
+        mesh: the container, upright, in m.
+
+    Returns:
+        A sentence naming the problem, or None.
+    """
+    if not water.overflows:
+        return (
+            f"its inside ({water.volume * 1e6:.0f} ml) is sealed: water poured in could "
+            "never run out over a rim"
+        )
+    hull = float(mesh.convex_hull.volume)
+    if water.volume < MIN_CAVITY_SHARE * hull:
+        return (
+            f"its only cavity holds {water.volume * 1e6:.1f} ml, "
+            f"{water.volume / hull:.1%} of its {hull * 1e6:.0f} ml outer volume"
+        )
+    return None
+
+
 def shell_holding_volume(points: np.ndarray, voxel: float) -> float:
     """Holding volume in m^3 of an upright surface given as dense points on it."""
     occupied, origin = shell_occupancy_from_points(points, voxel)
@@ -394,11 +467,13 @@ def container_dimensions(mesh: trimesh.Trimesh, voxel: float = 5e-4) -> Containe
     """
     v = np.asarray(mesh.vertices)
     centre, radius, top = top_band_rim(v)
+    water = cavity(mesh, voxel)
     return ContainerDimensions(
         height=top - float(v[:, 2].min()),
         rim_radius=radius,
         rim_center=(float(centre[0]), float(centre[1]), float(centre[2])),
-        volume=holding_volume(mesh, voxel),
+        volume=water.volume,
+        closed=opening_problem(water, mesh),
     )
 
 

@@ -24,7 +24,7 @@ import numpy as np
 import trimesh
 from scipy.spatial.transform import Rotation
 
-from pour_gym.errors import InputError
+from pour_gym.errors import NoWaterError
 from pour_gym.measure import (
     azimuth_wedges,
     max_per_group,
@@ -113,7 +113,7 @@ def find_up(mesh: trimesh.Trimesh) -> np.ndarray:
         (3, 3) rotation matrix; after it, the opening faces +z.
 
     Raises:
-        InputError: the mesh holds no water in any of the six directions.
+        NoWaterError: the mesh holds no water in any of the candidate directions.
     """
     v = np.asarray(mesh.vertices, dtype=float)
     centred = v - v.mean(axis=0)
@@ -137,9 +137,9 @@ def find_up(mesh: trimesh.Trimesh) -> np.ndarray:
             if volume > best_volume:
                 best, best_volume = rot, volume
     if best is None:
-        raise InputError(
-            "the mesh holds no water in any orientation: it is not a container (or its "
-            "opening is closed)"
+        raise NoWaterError(
+            "the mesh holds no water in any orientation: it is not a container, or its "
+            "opening is closed (scans often close it: cut the cap off at the rim)"
         )
     # Refine: the rim's plane is level when the container stands upright. The band is
     # taken per azimuth wedge, so it is a whole loop even while the axis is still tilted.
