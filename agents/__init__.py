@@ -1,5 +1,11 @@
 """Agents of pour-gym, installed as ``pour_gym.agents``.
 
-The thesis's classifiers and pouring policy, SB3 training helpers and policy search live
-here as the environments arrive.
+- :mod:`~pour_gym.agents.rollout`: one episode of a policy (the loop everything uses).
+- :mod:`~pour_gym.agents.scripted`: a pouring policy that reads only the warped features.
+- :mod:`~pour_gym.agents.experiments`: the thesis's experiments 1 and 2 with ROC curves.
+- :mod:`~pour_gym.agents.poc`: the thesis's proof of concept (Table 6.1).
+- :mod:`~pour_gym.agents.training`: SB3 training behind ``train.py``.
+- :mod:`~pour_gym.agents.evaluate`: success, amount error and spill per container.
+- :mod:`~pour_gym.agents.search`: CMA-ES policy search.
+- :mod:`~pour_gym.agents.study`: the generalisation report (features against state).
 """

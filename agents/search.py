@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
+from pour_gym.agents.rollout import rollout
 from pour_gym.agents.scripted import ScriptedPourPolicy
 from pour_gym.assets import expand_containers
 from pour_gym.errors import InputError
@@ -83,14 +84,8 @@ def episode_returns(
     """Run one episode per seed; the last infos with the returns."""
     out = []
     for seed in seeds:
-        obs, info = env.reset(seed=seed, options=options)
-        policy.reset()
-        total, done = 0.0, False
-        while not done:
-            obs, reward, terminated, truncated, info = env.step(policy(obs))
-            total += float(reward)
-            done = terminated or truncated
-        out.append({**info, "return": total})
+        episode = rollout(env, policy, seed=seed, options=options)
+        out.append({**episode.info, "return": episode.reward})
     return out
 
 

@@ -1,14 +1,22 @@
 """Training SB3 agents on the pour-gym environments (the logic behind ``train.py``).
 
 A run directory holds everything a run makes: ``config.json`` (the exact arguments and
-hyperparameters), ``checkpoints/`` (model and, for off-policy algorithms, replay buffer
-every ``checkpoint_every`` steps), ``progress.csv`` (SB3's logger; TensorBoard events too
-when tensorboard is installed), ``model.zip`` and ``eval.json``. Running the same command
-again resumes from the newest checkpoint until the requested number of steps is reached.
+hyperparameters), ``checkpoints/`` (model, observation normaliser and, for off-policy
+algorithms, replay buffer every ``checkpoint_every`` steps), ``progress.csv`` (SB3's
+logger), ``curve.csv`` and ``curve.png`` (success and return on the training containers
+during training), ``model.zip`` with ``vecnormalize.pkl`` beside it when observations are
+normalised, ``eval.json`` and ``eval.md``. Running the same command again resumes from
+the newest checkpoint until the requested number of steps is reached.
+
+:class:`TrainConfig` is the one definition of the training options: ``train.py`` builds its
+command line from its fields.
 """
 
 from __future__ import annotations
 
+import argparse
+import dataclasses
+import importlib
 import json
 import re
 import sys
@@ -16,14 +24,41 @@ from dataclasses import asdict, dataclass, field
 from importlib.resources import files
 from pathlib import Path
 
+import numpy as np
 import yaml
 from tqdm import tqdm
 
-from pour_gym.agents.evaluate import evaluate_policy, evaluation_table, sb3_policy
+from pour_gym.agents.evaluate import evaluate_policy, evaluation_table
+from pour_gym.agents.rollout import rollout, sb3_policy
 from pour_gym.assets import expand_containers
 from pour_gym.errors import InputError
 
-ALGOS = ("sac", "ppo", "td3")
+# Algorithm name -> "module:class"; imported when used (sb3-contrib is optional).
+ALGORITHMS = {
+    "sac": "stable_baselines3:SAC",
+    "ppo": "stable_baselines3:PPO",
+    "td3": "stable_baselines3:TD3",
+    "tqc": "sb3_contrib:TQC",
+}
+NORMALISER = "vecnormalize.pkl"
+
+
+def algorithm(name: str):
+    """The SB3 algorithm class of a name in :data:`ALGORITHMS`.
+
+    Raises:
+        InputError: an unknown name, or sb3-contrib missing for TQC.
+    """
+    if name not in ALGORITHMS:
+        raise InputError(f"unknown algorithm {name!r}; use one of {', '.join(ALGORITHMS)}")
+    module, cls = ALGORITHMS[name].split(":")
+    try:
+        return getattr(importlib.import_module(module), cls)
+    except ImportError:
+        raise InputError(
+            f"{name} needs the {module.replace('_', '-')} package: pip install "
+            f"{module.replace('_', '-')}"
+        ) from None
 
 
 def hyperparameters(env_id: str, algo: str) -> dict:
@@ -36,57 +71,137 @@ def hyperparameters(env_id: str, algo: str) -> dict:
     return dict(table[env_id][algo])
 
 
+def _help(text: str) -> dict:
+    return {"help": text}
+
+
 @dataclass
 class TrainConfig:
-    """What a training run does.
+    """What a training run does (``train.py``'s options are these fields)."""
+
+    env: str = field(default="PourGym/Pour-v0", metadata=_help("environment id"))
+    algo: str = field(default="sac", metadata=_help(f"one of {', '.join(ALGORITHMS)}"))
+    objects: str = field(
+        default="train", metadata=_help("containers to train on: split, name, mesh, or a,b,c")
+    )
+    timesteps: int = field(default=20_000, metadata=_help("environment steps in total"))
+    seed: int = field(default=0, metadata=_help("seed of the algorithm and the environments"))
+    obs_mode: str = field(default="features", metadata=_help("features or state"))
+    out: str = field(
+        default="", metadata=_help("run directory (default runs/<env>_<algo>_<objects>_...)")
+    )
+    checkpoint_every: int = field(default=5_000, metadata=_help("steps between checkpoints"))
+    eval_objects: str = field(default="all", metadata=_help("containers to evaluate on"))
+    eval_episodes: int = field(default=5, metadata=_help("evaluation episodes per container"))
+    eval_seed: int = field(
+        default=10_000, metadata=_help("seed of the first evaluation episode (never trained on)")
+    )
+    curve_every: int = field(
+        default=0, metadata=_help("steps between learning-curve points (0: none)")
+    )
+    curve_episodes: int = field(default=10, metadata=_help("episodes per learning-curve point"))
+    env_kwargs: dict = field(
+        default_factory=dict, metadata=_help("JSON of more environment arguments")
+    )
+    overrides: dict = field(
+        default_factory=dict, metadata=_help("hyperparameters that replace the YAML's (--set)")
+    )
+
+    def run_dir(self) -> Path:
+        """The run directory (``out``, or a name made of the run's options)."""
+        if self.out:
+            return Path(self.out)
+        objects = self.objects.replace(",", "+").replace("/", "_")
+        name = f"{self.env.split('/')[-1]}_{self.algo}_{objects}_{self.obs_mode}_s{self.seed}"
+        return Path("runs") / name
+
+
+def config_parser(description: str) -> argparse.ArgumentParser:
+    """A command line with one option per :class:`TrainConfig` field, plus ``--set``, ``--json``.
+
+    Dict fields take JSON; ``--set key=value`` (repeatable, YAML values) fills ``overrides``.
+    """
+    p = argparse.ArgumentParser(description=description)
+    for f in dataclasses.fields(TrainConfig):
+        flag = "--" + f.name.replace("_", "-")
+        if f.name == "overrides":
+            p.add_argument(
+                "--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                help="hyperparameter override (repeatable)",
+            )  # fmt: skip
+            continue
+        default = f.default_factory() if f.default_factory is not dataclasses.MISSING else f.default
+        kind = json.loads if isinstance(default, dict) else type(default)
+        choices = list(ALGORITHMS) if f.name == "algo" else None
+        choices = ["features", "state"] if f.name == "obs_mode" else choices
+        p.add_argument(flag, type=kind, default=default, choices=choices, help=f.metadata["help"])
+    p.add_argument("--json", action="store_true", help="print the evaluation as JSON")
+    return p
+
+
+def config_from_args(args: argparse.Namespace) -> TrainConfig:
+    """The :class:`TrainConfig` of parsed ``config_parser`` arguments."""
+    values = {f.name: getattr(args, f.name) for f in dataclasses.fields(TrainConfig)}
+    overrides = {}
+    for item in values["overrides"]:
+        key, sep, value = item.partition("=")
+        if not sep:
+            raise InputError(f"--set takes key=value, not {item!r}")
+        overrides[key] = yaml.safe_load(value)
+    values["overrides"] = overrides
+    return TrainConfig(**values)
+
+
+@dataclass
+class Run:
+    """A trained model with what it needs to act: its config and observation normaliser.
 
     Attributes:
-        env: environment id.
-        algo: ``sac``, ``ppo`` or ``td3``.
-        objects: containers to train on (split, name, path or list).
-        timesteps: environment steps in total (over all vectorised copies).
-        seed: seed of the algorithm and the environments.
-        obs_mode: ``features`` or ``state``.
-        out: run directory.
-        checkpoint_every: steps between checkpoints.
-        eval_objects: containers to evaluate on at the end.
-        eval_episodes: episodes per evaluated object.
-        env_kwargs: more environment arguments (e.g. a smaller ``source_particles``).
-        overrides: hyperparameters that replace the YAML file's.
+        model: the SB3 algorithm.
+        config: the run's ``config.json`` (empty if there was none).
+        normaliser: a ``VecNormalize`` with the training's statistics, or None.
     """
 
-    env: str = "PourGym/Pour-v0"
-    algo: str = "sac"
-    objects: str | list[str] = "train"
-    timesteps: int = 20_000
-    seed: int = 0
-    obs_mode: str = "features"
-    out: str = "runs/run"
-    checkpoint_every: int = 5_000
-    eval_objects: str | list[str] = "all"
-    eval_episodes: int = 5
-    env_kwargs: dict = field(default_factory=dict)
-    overrides: dict = field(default_factory=dict)
+    model: object
+    config: dict
+    normaliser: object | None = None
+
+    def normalise(self, obs: np.ndarray) -> np.ndarray:
+        """An observation as the model saw them in training."""
+        if self.normaliser is None:
+            return obs
+        return self.normaliser.normalize_obs(obs)
 
 
-class _ProgressBar:
-    """A tqdm bar over environment steps, as an SB3 callback (no rich needed)."""
+def load_run(model_path: str | Path, algo: str | None = None) -> Run:
+    """Load ``model.zip`` with the ``config.json`` and ``vecnormalize.pkl`` beside it.
 
-    def __new__(cls, total: int, start: int):
-        from stable_baselines3.common.callbacks import BaseCallback
+    Args:
+        model_path: the model file.
+        algo: the algorithm, if there is no ``config.json`` to say it.
 
-        class Bar(BaseCallback):
-            def _on_training_start(self) -> None:
-                self.bar = tqdm(total=total, initial=start, desc="train", file=sys.stderr)
+    Raises:
+        InputError: no such file, or no way to tell the algorithm.
+    """
+    path = Path(model_path)
+    if not path.is_file():
+        raise InputError(f"no model file {str(model_path)!r}")
+    config_path = path.parent / "config.json"
+    config = json.loads(config_path.read_text()) if config_path.is_file() else {}
+    name = config.get("algo", algo)
+    if name is None:
+        raise InputError(f"which algorithm made {path.name}? pass --algo ({', '.join(ALGORITHMS)})")
+    model = algorithm(name).load(path, device="cpu")
+    normaliser = None
+    stats = path.parent / NORMALISER
+    if stats.is_file():
+        import pickle
 
-            def _on_step(self) -> bool:
-                self.bar.update(self.training_env.num_envs)
-                return True
-
-            def _on_training_end(self) -> None:
-                self.bar.close()
-
-        return Bar()
+        with open(stats, "rb") as fh:
+            normaliser = pickle.load(fh)  # a VecNormalize without its env
+        normaliser.training = False
+        normaliser.norm_reward = False
+    return Run(model=model, config=config, normaliser=normaliser)
 
 
 def _latest_checkpoint(directory: Path) -> tuple[Path | None, int]:
@@ -98,6 +213,144 @@ def _latest_checkpoint(directory: Path) -> tuple[Path | None, int]:
     return best, steps
 
 
+def _callbacks(config: TrainConfig, out: Path, total: int, done: int, n_envs: int, env_kwargs):
+    """Checkpoints (with the normaliser), a progress bar and the learning curve."""
+    from stable_baselines3.common.callbacks import BaseCallback, CallbackList, CheckpointCallback
+
+    class Bar(BaseCallback):
+        def _on_training_start(self) -> None:
+            self.bar = tqdm(total=total, initial=done, desc="train", file=sys.stderr)
+
+        def _on_step(self) -> bool:
+            self.bar.update(self.training_env.num_envs)
+            return True
+
+        def _on_training_end(self) -> None:
+            self.bar.close()
+
+    class Curve(BaseCallback):
+        """Success and return of the deterministic policy on the training containers."""
+
+        def __init__(self):
+            super().__init__()
+            self.next = (done // config.curve_every + 1) * config.curve_every
+
+        def _on_step(self) -> bool:
+            if self.num_timesteps >= self.next:
+                self.next += config.curve_every
+                record_curve_point(config, out, self.model, self.training_env, env_kwargs)
+            return True
+
+    class SaveNormaliser(BaseCallback):
+        def _on_step(self) -> bool:
+            if self.n_calls % max(config.checkpoint_every // n_envs, 1) == 0:
+                save_normaliser(self.training_env, out / "checkpoints", self.num_timesteps)
+            return True
+
+    callbacks = [
+        CheckpointCallback(
+            max(config.checkpoint_every // n_envs, 1),
+            str(out / "checkpoints"),
+            name_prefix="model",
+            save_replay_buffer=config.algo not in ("ppo",),
+        ),
+        SaveNormaliser(),
+        Bar(),
+    ]
+    if config.curve_every > 0:
+        callbacks.append(Curve())
+    return CallbackList(callbacks)
+
+
+def save_normaliser(venv, folder: Path, steps: int | None = None) -> None:
+    """Save a ``VecNormalize``'s statistics (nothing for other vector envs)."""
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    if isinstance(venv, VecNormalize):
+        name = NORMALISER if steps is None else f"vecnormalize_{steps}_steps.pkl"
+        venv.save(str(folder / name))
+
+
+def record_curve_point(config: TrainConfig, out: Path, model, venv, env_kwargs: dict) -> dict:
+    """Evaluate the current policy on the training containers; append to ``curve.csv``."""
+    import gymnasium as gym
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    normaliser = venv if isinstance(venv, VecNormalize) else None
+    run = Run(model=model, config={}, normaliser=normaliser)
+    env = gym.make(config.env, **env_kwargs)
+    episodes = [
+        rollout(env, sb3_policy(run), seed=config.eval_seed + 500_000 + k)
+        for k in range(config.curve_episodes)
+    ]
+    env.close()
+    point = {
+        "timesteps": int(model.num_timesteps),
+        "success": float(np.mean([e.info["is_success"] for e in episodes])),
+        "return": float(np.mean([e.reward for e in episodes])),
+    }
+    if "poured" in episodes[0].info:
+        point["amount_error"] = float(
+            np.mean([abs(e.info["poured"] - e.info["target_amount"]) for e in episodes])
+        )
+        point["spilled"] = float(np.mean([e.info["spilled"] for e in episodes]))
+    path = out / "curve.csv"
+    new = not path.is_file()
+    with open(path, "a") as fh:
+        if new:
+            fh.write(",".join(point) + "\n")
+        fh.write(",".join(f"{v:g}" for v in point.values()) + "\n")
+    return point
+
+
+def plot_curve(out: Path, title: str) -> Path | None:
+    """``curve.png`` from ``curve.csv`` (success and return against steps)."""
+    path = out / "curve.csv"
+    if not path.is_file():
+        return None
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    data = np.genfromtxt(path, delimiter=",", names=True)
+    data = np.atleast_1d(data)
+    fig, ax = plt.subplots(figsize=(7, 4))
+    ax.plot(data["timesteps"], data["success"], "o-", label="success rate")
+    ax.set_xlabel("environment steps")
+    ax.set_ylabel("success rate (training containers, deterministic policy)")
+    ax.set_ylim(-0.02, 1.02)
+    ax2 = ax.twinx()
+    ax2.plot(data["timesteps"], data["return"], "s--", color="tab:orange", label="return")
+    ax2.set_ylabel("mean return")
+    fig.legend(loc="upper left", fontsize=8)
+    ax.set_title(title, fontsize=9)
+    fig.tight_layout()
+    png = out / "curve.png"
+    fig.savefig(png, dpi=110)
+    plt.close(fig)
+    return png
+
+
+def make_training_env(config: TrainConfig, n_envs: int, normalize: dict | None, env_kwargs: dict):
+    """The vector env: subprocess workers when ``n_envs > 1``, normalised if asked."""
+    from stable_baselines3.common.env_util import make_vec_env
+    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNormalize
+
+    if n_envs > 1:
+        venv = make_vec_env(
+            config.env, n_envs=n_envs, seed=config.seed, env_kwargs=env_kwargs,
+            vec_env_cls=SubprocVecEnv, vec_env_kwargs={"start_method": "forkserver"},
+        )  # fmt: skip
+    else:
+        venv = make_vec_env(
+            config.env, n_envs=1, seed=config.seed, env_kwargs=env_kwargs, vec_env_cls=DummyVecEnv
+        )
+    if normalize:
+        venv = VecNormalize(venv, **normalize)
+    return venv
+
+
 def train(config: TrainConfig) -> dict:
     """Train (or resume) an SB3 agent, save it, and evaluate it on every container.
 
@@ -106,15 +359,12 @@ def train(config: TrainConfig) -> dict:
         ``timesteps``.
     """
     import gymnasium as gym
-    from stable_baselines3 import PPO, SAC, TD3
-    from stable_baselines3.common.callbacks import CallbackList, CheckpointCallback
-    from stable_baselines3.common.env_util import make_vec_env
     from stable_baselines3.common.logger import configure
+    from stable_baselines3.common.vec_env import VecNormalize
 
     import pour_gym  # noqa: F401 - registers the environments
 
-    if config.algo not in ALGOS:
-        raise InputError(f"unknown algorithm {config.algo!r}; use one of {', '.join(ALGOS)}")
+    cls = algorithm(config.algo)
     if config.timesteps <= 0:
         raise InputError(f"--timesteps must be positive, not {config.timesteps}")
     if config.env not in gym.registry:
@@ -122,55 +372,56 @@ def train(config: TrainConfig) -> dict:
     params = {**hyperparameters(config.env, config.algo), **config.overrides}
     n_envs = int(params.pop("n_envs", 1))
     policy = params.pop("policy", "MlpPolicy")
+    normalize = params.pop("normalize", None)
     train_objects = list(expand_containers(config.objects))
-    out = Path(config.out)
+    out = config.run_dir()
     ckpt_dir = out / "checkpoints"
     ckpt_dir.mkdir(parents=True, exist_ok=True)
     (out / "config.json").write_text(
-        json.dumps({**asdict(config), "hyperparameters": params, "n_envs": n_envs}, indent=2)
+        json.dumps(
+            {
+                **asdict(config),
+                "out": str(out),
+                "hyperparameters": params,
+                "n_envs": n_envs,
+                "policy": policy,
+                "normalize": normalize,
+            },
+            indent=2,
+        )
     )
     env_kwargs = {"objects": train_objects, "obs_mode": config.obs_mode, **config.env_kwargs}
-    venv = make_vec_env(config.env, n_envs=n_envs, seed=config.seed, env_kwargs=env_kwargs)
-    cls = {"sac": SAC, "ppo": PPO, "td3": TD3}[config.algo]
+    venv = make_training_env(config, n_envs, normalize, env_kwargs)
     checkpoint, done = _latest_checkpoint(ckpt_dir)
     if checkpoint is not None:
-        model = cls.load(checkpoint, env=venv, seed=config.seed)
+        stats = ckpt_dir / f"vecnormalize_{done}_steps.pkl"
+        if normalize and stats.is_file():
+            venv = VecNormalize.load(str(stats), venv.venv)
+        model = cls.load(checkpoint, env=venv, seed=config.seed, device="cpu")
         buffer = ckpt_dir / f"model_replay_buffer_{done}_steps.pkl"
         if buffer.is_file() and hasattr(model, "load_replay_buffer"):
             model.load_replay_buffer(buffer)
     else:
-        model = cls(policy, venv, seed=config.seed, verbose=0, **params)
-    formats = ["csv"]
-    try:
-        import tensorboard  # noqa: F401
-
-        formats.append("tensorboard")
-    except ImportError:
-        pass
-    model.set_logger(configure(str(out), formats))
+        model = cls(policy, venv, seed=config.seed, verbose=0, device="cpu", **params)
+    model.set_logger(configure(str(out), ["csv"]))
     remaining = config.timesteps - done
     if remaining > 0:
-        callbacks = CallbackList(
-            [
-                CheckpointCallback(
-                    max(config.checkpoint_every // n_envs, 1),
-                    str(ckpt_dir),
-                    name_prefix="model",
-                    save_replay_buffer=config.algo != "ppo",
-                ),
-                _ProgressBar(remaining + done, done),
-            ]
-        )
+        callbacks = _callbacks(config, out, remaining + done, done, n_envs, env_kwargs)
         model.learn(remaining, callback=callbacks, reset_num_timesteps=checkpoint is None)
         # The finished run is a checkpoint too: running the command again only evaluates.
         model.save(ckpt_dir / f"model_{model.num_timesteps}_steps.zip")
+        save_normaliser(venv, ckpt_dir, model.num_timesteps)
     model.save(out / "model.zip")
+    save_normaliser(venv, out)
     venv.close()
+    plot_curve(out, f"{config.env}, {config.algo}, {config.obs_mode}, {config.objects}")
+    run = load_run(out / "model.zip")
     result = evaluate_policy(
-        sb3_policy(model),
+        sb3_policy(run),
         config.env,
         expand_containers(config.eval_objects),
         config.eval_episodes,
+        seed=config.eval_seed,
         env_kwargs={"obs_mode": config.obs_mode, **config.env_kwargs},
         trained_on=train_objects,
     )

@@ -1,58 +1,90 @@
-"""What the pour-gym environments share: containers, the world, actions, pictures, pickling.
+"""What the pour-gym environments share: containers, the world, actions, rewards, pictures.
 
 Each environment owns one :class:`~pour_gym.sim.World` (its own pybullet client), built at
 the first reset and reused; containers are loaded once per environment (labelled asset and
-signed-distance field) and swapped in and out of the world as episodes ask for them.
+signed-distance field) and swapped in and out of the world as episodes ask for them. An
+environment pickles as its constructor arguments (Gymnasium's ``EzPickle``) and is rebuilt
+on arrival.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any, ClassVar
+from typing import ClassVar
 
 import gymnasium as gym
 import numpy as np
+from gymnasium.utils import EzPickle
 
-from pour_gym.assets import LabelledAsset, expand_containers, resolve_asset
+from pour_gym.assets import (
+    CATALOGUE,
+    LabelledAsset,
+    check_open,
+    expand_containers,
+    resolve_asset,
+)
 from pour_gym.fluid.pbf import PBFConfig
 from pour_gym.fluid.sdf import SignedDistanceField
 from pour_gym.sim import Camera, Container, World
-from pour_gym.sim.world import FLUIDS, container_field
+from pour_gym.sim.world import CUP_COLORS, FLUIDS, container_field
 
 RENDER_MODES = ["rgb_array", "human"]
 OBS_MODES = ("features", "state")
+# Which colour each role's container is drawn in.
+ROLE_COLORS = {"source": CUP_COLORS[0], "target": CUP_COLORS[1], "container": CUP_COLORS[1]}
 
 
-class PourGymEnv(gym.Env):
-    """Base class: container specs, a lazily built world, checked actions, rendering.
+class PourGymEnv(gym.Env, EzPickle):
+    """Base class: container specs, a lazily built world, checked actions, rewards, pictures.
 
-    Subclasses set ``self._init_kwargs`` (for pickling) and the spaces, and call
-    :meth:`_setup` from their ``__init__``.
+    Args:
+        fluid: ``"pbf"`` or ``"bullet"``.
+        fluid_config: fluid parameters (a :class:`~pour_gym.fluid.pbf.PBFConfig` or a dict).
+        num_threads: threads of the PBF fluid; ``None`` picks one per core in a main
+            process and one in a worker process (see
+            :func:`pour_gym.fluid.pbf.default_threads`).
+        render_mode: ``"rgb_array"``, ``"human"`` or None.
+        camera: where pictures are taken from.
+        reward_weights: the weight of each reward term; a subclass's ``reward_<term>``
+            entries in ``info`` are the weighted terms, and they sum to the reward.
     """
 
     metadata: ClassVar[dict] = {"render_modes": RENDER_MODES, "render_fps": 10}
 
-    def _setup(
+    def __init__(
         self,
         fluid: str,
         fluid_config: PBFConfig | dict | None,
+        num_threads: int | None,
         render_mode: str | None,
         camera: Camera,
-    ) -> None:
+        reward_weights: dict[str, float],
+    ):
         if fluid not in FLUIDS:
             raise ValueError(f"fluid must be one of {FLUIDS}, not {fluid!r}")
         if render_mode is not None and render_mode not in RENDER_MODES:
             raise ValueError(f"render_mode must be one of {RENDER_MODES} or None")
+        if num_threads is not None and int(num_threads) < 1:
+            raise ValueError(f"num_threads must be at least 1 (or None), not {num_threads}")
         if isinstance(fluid_config, dict):
             fluid_config = PBFConfig(**fluid_config)
+        bad = {k: w for k, w in reward_weights.items() if not np.isfinite(w)}
+        if bad:
+            raise ValueError(f"reward weights must be finite numbers, got {bad}")
         self.fluid = fluid
         self.fluid_config = fluid_config or PBFConfig()
+        self.num_threads = None if num_threads is None else int(num_threads)
         self.render_mode = render_mode
         self.camera = camera
+        self.reward_weights = {k: float(w) for k, w in reward_weights.items()}
         self._world: World | None = None
-        self._loaded: dict[str, tuple[LabelledAsset, SignedDistanceField]] = {}
+        self._assets: dict[str, LabelledAsset] = {}
+        self._fields: dict[str, SignedDistanceField] = {}
         self._placed: dict[str, Container] = {}
+        self._names: dict[str, str] = {}  # role -> the container's spec, as given
         self._viewer = None
+        self._closed = False
+        self._started = False
 
     # ------------------------------------------------------------------ arguments
     @staticmethod
@@ -73,32 +105,46 @@ class PourGymEnv(gym.Env):
         return options
 
     # ------------------------------------------------------------------ containers
-    @staticmethod
-    def _containers(spec) -> tuple[str, ...]:
-        """Container names or paths of a split, a name, a path or a list (ValueError if bad)."""
-        return expand_containers(spec)
+    def _containers(self, spec) -> tuple[str, ...]:
+        """Container names or paths of a split, a name, a path or a list (ValueError if bad).
+
+        A user's container (a mesh file or an asset directory) is loaded here, so that one
+        with no opening is refused at construction (:func:`pour_gym.assets.check_open`),
+        however it was labelled; the catalogue's are open.
+        """
+        names = expand_containers(spec)
+        for name in names:
+            if name not in CATALOGUE:
+                self.asset(name)
+        return names
 
     def _choose(self, pool: tuple[str, ...], fixed: str | Path | None) -> str:
         """A container from the pool (``self.np_random``), or the one fixed by options."""
         if fixed is not None:
-            return expand_containers(fixed)[0]
+            return self._containers(fixed)[0]
         return pool[int(self.np_random.integers(len(pool)))]
 
     def asset(self, name: str) -> LabelledAsset:
         """The labelled asset of a container (loaded once per environment)."""
-        return self._load(name)[0]
+        if name not in self._assets:
+            self._assets[name] = check_open(resolve_asset(name), name)
+        return self._assets[name]
 
     def _load(self, name: str) -> tuple[LabelledAsset, SignedDistanceField]:
-        if name not in self._loaded:
-            asset = resolve_asset(name)
-            self._loaded[name] = (asset, container_field(asset))
-        return self._loaded[name]
+        """The asset and its signed-distance field (computed once per environment)."""
+        if name not in self._fields:
+            self._fields[name] = container_field(self.asset(name))
+        return self.asset(name), self._fields[name]
 
     @property
     def world(self) -> World:
         """The environment's world (built at first use)."""
+        if self._closed:
+            raise RuntimeError(
+                f"this {type(self).__name__} was closed; make a new environment to go on"
+            )
         if self._world is None:
-            self._world = World(self.fluid, self.fluid_config)
+            self._world = World(self.fluid, self.fluid_config, num_threads=self.num_threads)
         return self._world
 
     def _place(self, roles: dict[str, str]) -> dict[str, Container]:
@@ -110,30 +156,64 @@ class PourGymEnv(gym.Env):
         world = self.world
         world.clear_particles()
         for role in list(self._placed):
-            c = self._placed[role]
-            if roles.get(role) != c.asset.meta.get("_spec"):
-                world.remove_container(c)
-                del self._placed[role]
-        colours = {"source": (0.85, 0.2, 0.2, 1.0), "target": (0.92, 0.92, 0.88, 1.0)}
+            if roles.get(role) != self._names.get(role):
+                world.remove_container(self._placed.pop(role))
+                self._names.pop(role, None)
         for role, name in roles.items():
             if role in self._placed:
                 continue
             asset, sdf = self._load(name)
-            asset.meta["_spec"] = name
             self._placed[role] = world.add_container(
-                asset, (0.0, 0.0, 0.0), color=colours.get(role), sdf=sdf
+                asset, (0.0, 0.0, 0.0), color=ROLE_COLORS.get(role), sdf=sdf
             )
+            self._names[role] = name
         return self._placed
 
-    # ------------------------------------------------------------------ actions
+    # ------------------------------------------------------------------ steps
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        """Seed the environment's generator (subclasses place the episode's scene)."""
+        if self._closed:
+            raise RuntimeError(
+                f"this {type(self).__name__} was closed; make a new environment to go on"
+            )
+        super().reset(seed=seed)
+        self._started = True
+        return None
+
     def _check_action(self, action) -> np.ndarray:
         """The action as a float array of the space's shape; ValueError if it is not one."""
-        a = np.asarray(action, dtype=np.float64).reshape(self.action_space.shape)
+        if self._closed:
+            raise RuntimeError(
+                f"step() on a closed {type(self).__name__}; make a new environment to go on"
+            )
+        if not self._started:
+            raise RuntimeError(f"call reset() before step() on {type(self).__name__}")
+        shape = self.action_space.shape
+        try:
+            a = np.asarray(action, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise ValueError(f"an action is {shape} numbers, got {action!r}") from None
+        if a.size != int(np.prod(shape)):
+            raise ValueError(f"an action has shape {shape}, got {a.shape}: {a.tolist()}")
+        a = a.reshape(shape)
         if not np.isfinite(a).all():
             raise ValueError(f"the action contains NaN or infinity: {a.tolist()}")
         if np.any(a < -1.0 - 1e-6) or np.any(a > 1.0 + 1e-6):
             raise ValueError(f"actions lie in [-1, 1]; got {a.tolist()}")
-        return a
+        return np.clip(a, -1.0, 1.0)
+
+    def _reward(self, terms: dict[str, float]) -> tuple[float, dict[str, float]]:
+        """The reward of unweighted terms: their weighted sum, and the weighted terms.
+
+        Args:
+            terms: each reward term's value before weighting, by the names of
+                ``reward_weights``.
+
+        Returns:
+            ``(reward, {"reward_<term>": weighted value})``; the values sum to the reward.
+        """
+        weighted = {f"reward_{k}": self.reward_weights[k] * float(v) for k, v in terms.items()}
+        return float(sum(weighted.values())), weighted
 
     # ------------------------------------------------------------------ pictures
     def render(self) -> np.ndarray | None:
@@ -166,17 +246,10 @@ class PourGymEnv(gym.Env):
             self._world.close()
             self._world = None
             self._placed = {}
+            self._names = {}
         if self._viewer is not None:
             import matplotlib.pyplot as plt
 
             plt.close(self._viewer[0])
             self._viewer = None
-
-    # ------------------------------------------------------------------ pickling
-    def __getstate__(self) -> dict[str, Any]:
-        # A pybullet client cannot be pickled: an environment travels as its arguments
-        # and is rebuilt on arrival (reset it before use, as after gymnasium.make).
-        return {"init_kwargs": self._init_kwargs}
-
-    def __setstate__(self, state: dict[str, Any]) -> None:
-        self.__init__(**state["init_kwargs"])
+        self._closed = True

@@ -4,14 +4,16 @@ from __future__ import annotations
 
 import numpy as np
 from gymnasium import spaces
+from gymnasium.utils import EzPickle
 
 from pour_gym.envs.base import PourGymEnv
+from pour_gym.features import fill_fraction, relative_distance_height
 from pour_gym.fluid.pbf import PBFConfig
 from pour_gym.sim import Camera
 
 FEATURE_NAMES = ("f1", "f2", "f3")
 STATE_NAMES = ("x", "y", "z", "size_x", "size_y", "size_z", "fill")
-CORRECT, SPILL = 1.0, -2.0
+STATE_SCALE = 0.5  # m: positions and sizes in the state observation are over this
 
 
 class ParticleDropEnv(PourGymEnv):
@@ -27,18 +29,20 @@ class ParticleDropEnv(PourGymEnv):
     A classifier of the features is a policy.
 
     ## Action Space
-    ``Box(-1, 1, (1,))``: release here if positive.
+    ``Box(-1, 1, (1,), float32)``: release here if positive.
 
     ## Observation Space
-    ``obs_mode="features"``: ``Box([0, -2, 0], [4, 3, 1])``, the thesis's f1 (horizontal
-    distance to the rim centre over the rim radius), f2 (height above the rim centre over
-    the container's height) and f3 (fluid in the container over its volume).
-    ``obs_mode="state"``: the blob's position relative to the container's base, m, the
-    container's bounding-box size, m, and the fill fraction.
+    ``obs_mode="features"``: ``Box([0, -2, 0], [4, 3, 1], float32)``, the thesis's f1
+    (horizontal distance to the rim centre over the rim radius), f2 (height above the rim
+    centre over the container's height) and f3 (fluid in the container over its volume),
+    from :mod:`pour_gym.features`. ``obs_mode="state"``: ``Box(-1, 1, (7,), float32)``:
+    the blob's position relative to the container's base and the container's
+    bounding-box size, both in units of 0.5 m, and the fill fraction.
 
     ## Rewards
-    ``correct`` = +1 for a right decision; ``spill`` = -2 for releasing fluid that does not
-    end in the container; 0 for holding back fluid that would have. Terms in ``info``.
+    ``correct`` = 1 for a right decision; ``spill`` = -1 for releasing fluid that does not
+    end in the container; 0 for holding back fluid that would have. Each times its
+    weight; terms in ``info``.
 
     ## Starting State
     A container from ``objects`` (``np_random``); f1 uniform in [0, 2], f2 uniform in
@@ -48,10 +52,22 @@ class ParticleDropEnv(PourGymEnv):
     After the one step (terminated).
 
     ## Arguments
-    ``objects``, ``obs_mode``, ``fluid``, ``fluid_config``, ``blob`` (particles),
-    ``fill_range``, ``drop_time`` (s), ``render_mode``. ``reset(options=...)`` accepts
-    ``container`` (a name or mesh path), ``spawn`` (xyz in the container's frame, m) and
-    ``fill`` (fraction of the volume).
+    | argument | type | default | meaning |
+    |---|---|---|---|
+    | ``objects`` | str, path or list | ``"train"`` | a split, names, mesh files, asset folders |
+    | ``obs_mode`` | str | ``"features"`` | ``"features"`` or ``"state"`` |
+    | ``fluid`` | str | ``"pbf"`` | ``"pbf"`` or ``"bullet"`` |
+    | ``fluid_config`` | PBFConfig or dict | None | fluid parameters |
+    | ``num_threads`` | int or None | None | fluid threads |
+    | ``blob`` | int | 1 | particles released |
+    | ``fill_range`` | (float, float) | (0, 0.8) | resident fluid, fraction of the volume |
+    | ``drop_time`` | float | 0.6 | simulated time after release, s |
+    | ``correct_weight`` | float | 1.0 | weight of ``correct`` |
+    | ``spill_weight`` | float | 2.0 | weight of ``spill`` |
+    | ``render_mode`` | str or None | None | ``"rgb_array"`` or ``"human"`` |
+
+    ``reset(options=...)`` accepts ``container`` (a name or mesh path), ``spawn`` (xyz in
+    the container's frame, m) and ``fill`` (fraction of the volume).
 
     The resident fluid enters f3 but is not simulated with the blob (it would cost a
     settling simulation per episode): the label is the blob's fate in the container as
@@ -59,7 +75,11 @@ class ParticleDropEnv(PourGymEnv):
     is not about to overflow (fills up to 80 % of the volume).
 
     ## Version History
-    * v0: initial version.
+    * v0 (this release): the features from :mod:`pour_gym.features`; reward weights and
+      ``num_threads`` are arguments; a user's mug of two overlapping bodies no longer
+      leaves particles inside its base (its collision field is signed by where fluid
+      can be, not by ray parity).
+    * v0 (first release).
     """
 
     def __init__(
@@ -68,26 +88,43 @@ class ParticleDropEnv(PourGymEnv):
         obs_mode: str = "features",
         fluid: str = "pbf",
         fluid_config: PBFConfig | dict | None = None,
+        num_threads: int | None = None,
         blob: int = 1,
         fill_range: tuple[float, float] = (0.0, 0.8),
         drop_time: float = 0.6,
+        correct_weight: float = 1.0,
+        spill_weight: float = 2.0,
         render_mode: str | None = None,
     ):
-        self._init_kwargs = dict(
+        EzPickle.__init__(
+            self,
             objects=objects,
             obs_mode=obs_mode,
             fluid=fluid,
             fluid_config=fluid_config,
+            num_threads=num_threads,
             blob=blob,
             fill_range=fill_range,
             drop_time=drop_time,
+            correct_weight=correct_weight,
+            spill_weight=spill_weight,
             render_mode=render_mode,
+        )
+        super().__init__(
+            fluid,
+            fluid_config,
+            num_threads,
+            render_mode,
+            Camera(distance=0.4, pitch=-35.0),
+            {"correct": correct_weight, "spill": spill_weight},
         )
         self._check_obs_mode(obs_mode)
         if blob < 1:
             raise ValueError(f"blob must be at least 1 particle, not {blob}")
         if not 0.0 <= fill_range[0] <= fill_range[1] <= 0.8:
             raise ValueError(f"fill_range must lie within [0, 0.8], not {fill_range}")
+        if not drop_time > 0:
+            raise ValueError(f"drop_time must be positive, not {drop_time}")
         self.containers = self._containers(objects)
         self.obs_mode = obs_mode
         self.blob = int(blob)
@@ -102,7 +139,6 @@ class ParticleDropEnv(PourGymEnv):
             self.obs_names = STATE_NAMES
             self.observation_space = spaces.Box(-1.0, 1.0, (len(STATE_NAMES),), np.float32)
         self.action_space = spaces.Box(-1.0, 1.0, (1,), np.float32)
-        self._setup(fluid, fluid_config, render_mode, Camera(distance=0.4, pitch=-35.0))
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         """Place the container and the fluid; ``options``: container, spawn, fill."""
@@ -139,6 +175,7 @@ class ParticleDropEnv(PourGymEnv):
         ) * s
         offsets = offsets[np.argsort(np.linalg.norm(offsets, axis=1), kind="stable")][: self.blob]
         self.world.add_particles(self.container.to_world(spawn + offsets))
+        self._features = self._compute_features()
         return self._observation(), self._info()
 
     def step(self, action):
@@ -149,36 +186,43 @@ class ParticleDropEnv(PourGymEnv):
         self.world.step(self.dt)
         census = self.world.census()
         self.label = bool(census.counts[self.container.index] * 2 > self.blob)
-        terms = {"correct": 0.0, "spill": 0.0}
-        if release == self.label:
-            terms["correct"] = CORRECT
-        elif release:
-            terms["spill"] = SPILL
-        info = self._info()
-        info.update({f"reward_{k}": v for k, v in terms.items()})
-        info.update(label=self.label, released=release, is_success=release == self.label)
-        return self._observation(), float(sum(terms.values())), True, False, info
+        terms = {
+            "correct": float(release == self.label),
+            "spill": -float(release and not self.label),
+        }
+        reward, weighted = self._reward(terms)
+        info = self._info(weighted, label=self.label, released=release)
+        return self._observation(), reward, True, False, info
 
     def features(self) -> np.ndarray:
         """(f1, f2, f3) of the fluid as it appeared."""
-        g = self.container.asset.geometry
-        d = self.spawn - g.rim_center
-        return np.array([np.hypot(d[0], d[1]) / g.rim_radius, d[2] / g.height, self.fill])
+        return self._features.copy()
+
+    def _compute_features(self) -> np.ndarray:
+        c = self.container
+        g = c.asset.geometry
+        where = c.to_world(self.spawn)[None]
+        f1, f2 = relative_distance_height(g, where, c.rotation, c.translation)
+        return np.array([f1[0], f2[0], fill_fraction(self.fill * g.cavity_volume, g)])
 
     def _observation(self) -> np.ndarray:
         if self.obs_mode == "features":
-            obs = self.features()
+            obs = self._features
         else:
             size = np.ptp(self.container.asset.mesh.bounds, axis=0)
-            obs = np.array([*(self.spawn / 0.5), *(size / 0.5), self.fill])
+            obs = np.array([*(self.spawn / STATE_SCALE), *(size / STATE_SCALE), self.fill])
         space = self.observation_space
         return np.clip(obs, space.low, space.high).astype(np.float32)
 
-    def _info(self) -> dict:
-        return {
-            "container": self.container.asset.meta.get("_spec", self.container.asset.name),
-            "features": self.features().tolist(),
+    def _info(self, terms: dict | None = None, **outcome) -> dict:
+        """The episode's info; after the step also the reward's terms and the outcome."""
+        info = {
+            "container": self._names["container"],
+            "features": self._features.tolist(),
             "spawn": self.spawn.tolist(),
             "fill": self.fill,
-            "is_success": False,
+            **(terms or {}),
+            **outcome,
         }
+        info["is_success"] = bool(outcome) and outcome["released"] == outcome["label"]
+        return info

@@ -4,10 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 from gymnasium import spaces
+from gymnasium.utils import EzPickle
 from scipy.spatial.transform import Rotation
 
 from pour_gym.envs.base import PourGymEnv
-from pour_gym.features import ContainerGeometry
+from pour_gym.features import ContainerGeometry, fluid_features, relative_distance_height
 from pour_gym.fluid.pbf import PBFConfig
 from pour_gym.sim import Camera
 
@@ -22,11 +23,12 @@ FEATURE_NAMES = (
     "in_flight",  # moving particles in no container over the target amount
     "spilled",  # resting particles in no container over the target amount
     "target_fill",  # target amount over the target's volume
-    "stream_f1",  # mean f1 of the particles in flight (0 if none)
+    "stream_f1",  # mean thesis f1 of the particles in flight for the target (0 if none)
     "target_rim_radius",  # in 10 cm
     "target_height",  # in 10 cm
     "source_rim_radius",  # in 10 cm
     "source_height",  # in 10 cm
+    "in_source",  # particles in the source over the target amount
 )
 STATE_NAMES = (
     "lip_x",
@@ -52,6 +54,8 @@ STATE_NAMES = (
 OBS_LIMIT = 10.0
 UPRIGHT_DEG = 3.0
 RESTING_SPEED = 0.05  # m/s: a particle in no container moving slower has spilled
+# The fill left over when the fill is sized to the task, particles.
+FILL_MARGIN = 100
 
 
 class PourEnv(PourGymEnv):
@@ -63,53 +67,95 @@ class PourEnv(PourGymEnv):
     faces the target, along +x) at a controlled position; a target container stands on
     the table at a random offset. The agent moves the lip and tilts the source about it
     to pour a requested amount into the target, spilling nothing, and sets the source
-    upright again.
+    upright again. One step is 0.1 s; the fluid takes as many substeps as the motion
+    needs, so no action in the action space can make it fail.
 
     ## Action Space
-    ``Box(-1, 1, (4,))``: lip velocity along x, y, z (times ``max_speed`` m/s) and tilt
-    rate (times ``max_tilt_rate`` degrees/s; positive tilts towards the target). The
-    tilt stays within [0, ``max_tilt`` deg]; the lip stays in a box over the table and
+    ``Box(-1, 1, (4,), float32)``: lip velocity along x, y, z (times ``max_speed`` m/s) and
+    tilt rate (times ``max_tilt_rate`` degrees/s; positive tilts towards the target). The
+    tilt stays within [0, ``max_tilt``] degrees; the lip stays in a box over the table and
     high enough that the source clears the target's rim.
 
     ## Observation Space
-    ``obs_mode="features"`` (default): ``Box(-10, 10, (15,))``, see ``FEATURE_NAMES``:
-    the lip relative to the target's rim centre in units of the target's rim radius and
-    height, the tilt, the thesis's f3 and f4 of the source, the fluid poured, in flight
-    and spilled over the target amount, the target amount over the target's volume, the
-    stream's mean f1, and the containers' rim radii and heights from their labels.
-    ``obs_mode="state"``: ``Box(-10, 10, (19,))``, see ``STATE_NAMES``: raw positions,
-    tilt, the target's yaw, bounding-box sizes, particle counts over the initial fill;
-    no warped features.
+    ``obs_mode="features"`` (default): ``Box(-10, 10, (16,), float32)``, see
+    ``FEATURE_NAMES``: the lip relative to the target's rim centre in units of the target's
+    rim radius and height, the tilt, the thesis's f3 and f4 of the source
+    (:func:`pour_gym.features.fluid_features`: fluid in the source, and the part of it
+    above the source's lowest rim vertex, over the source's volume), the fluid poured, in
+    flight and spilled over the target amount, the target amount over the target's
+    volume, the stream's mean thesis f1 for the target, the containers' rim radii and
+    heights from their labels, and the fluid left in the source over the target amount.
+    ``obs_mode="state"``: ``Box(-10, 10, (19,), float32)``, see ``STATE_NAMES``: raw
+    positions (m), tilt (rad), the target's yaw, bounding-box sizes (in 10 cm), particle
+    counts over the initial fill; no warped features.
 
     ## Rewards
-    Per step, with T the target amount in particles: ``progress`` = increase of
-    min(poured, T) / T; ``overshoot`` = -2 times the increase of max(poured - T, 0) / T;
-    ``spill`` = -2 times the increase of spilled particles / T; ``success`` = +1 on the
-    step that ends a successful episode. ``info`` holds the terms; they sum to the reward.
+    Per step, with T the target amount in particles, each term times its weight:
+    ``progress`` = increase of min(poured, T) / T; ``overshoot`` = -(increase of
+    max(poured - T, 0)) / T; ``spill`` = -(increase of spilled particles) / T;
+    ``success`` = 1 on the step that ends a successful episode; ``time`` = -1 per step;
+    ``aim`` = the change of -(horizontal distance of the lip from the target's rim
+    centre, over its rim radius) (potential-based shaping); ``upright`` = the change of
+    -(tilt / 90 deg) once poured plus in flight reaches T less the tolerance
+    (potential-based shaping towards ending upright). ``info["reward_<term>"]`` holds
+    each weighted term; they sum to the reward.
 
     ## Starting State
-    Containers from ``objects`` (or ``options``), sampled with ``np_random``; the source
-    filled with ``source_particles`` (at most 60 % of its volume) and its lip 0-5 cm above
-    the lowest allowed height at the origin; the target at x in [15, 25] cm, y in
-    [-10, 10] cm with a random yaw; T uniform in ``amount_range`` (at most the fill less
-    50 and 60 % of the target's volume).
+    Containers from ``objects`` (or ``options``), sampled with ``np_random``; the target
+    at x in [15, 25] cm, y in [-10, 10] cm with a random yaw; T uniform in
+    ``amount_range`` (at most 60 % of the target's volume, and at most the source's fill
+    less 50); the source filled with ``source_particles`` (by default T + 100, the fill
+    sized to the task; at most 60 % of its volume), every particle in its cavity, its lip
+    0-5 cm above the lowest allowed height at the origin.
 
     ## Episode End
-    Terminated when some fluid has left the source, the source is upright again (tilt
-    below 3 deg) and no particle is in flight, or when the source is empty and nothing is
-    in flight. Success: |poured - T| <= max(5, 10 % of T), nothing spilled, source
-    upright. Truncation is left to ``max_episode_steps`` (250 steps = 25 s).
+    Terminated once a pour has happened (at least ``pour_threshold`` particles out of the
+    source for ``pour_steps`` steps in a row, so a particle flickering across the
+    source's rim is not a pour), the source is upright again (tilt below 3 deg) and no
+    particle is in flight; or when the source is empty and nothing is in flight.
+    Success: |poured - T| <= max(5, 10 % of T), nothing spilled, source upright.
+    Truncation is left to ``max_episode_steps`` (250 steps = 25 s).
 
     ## Arguments
-    ``objects`` ("train", "test", "all", "real", a name, a mesh path or a list) for both
-    containers, or ``source_objects`` / ``target_objects`` separately; ``obs_mode``;
-    ``fluid`` ("pbf" or "bullet"); ``fluid_config`` (a ``PBFConfig`` or dict);
-    ``source_particles``; ``amount_range``; ``max_speed``; ``max_tilt_rate``;
-    ``max_tilt``; ``render_mode``. ``reset(options=...)`` accepts ``source``, ``target``
-    (names or mesh paths) and ``target_amount`` (particles).
+    | argument | type | default | meaning |
+    |---|---|---|---|
+    | ``objects`` | str, path or list | ``"train"`` | both containers (a split, names, files) |
+    | ``source_objects`` | same | None | the source containers (instead of ``objects``) |
+    | ``target_objects`` | same | None | the target containers (instead of ``objects``) |
+    | ``obs_mode`` | str | ``"features"`` | ``"features"`` or ``"state"`` |
+    | ``fluid`` | str | ``"pbf"`` | ``"pbf"`` or ``"bullet"`` (rigid spheres, slow) |
+    | ``fluid_config`` | PBFConfig or dict | None | fluid parameters |
+    | ``num_threads`` | int or None | None | fluid threads (None: cores, one in a worker) |
+    | ``source_particles`` | int or None | None | the fill (None: T + 100) |
+    | ``amount_range`` | (int, int) | (100, 300) | T, particles (0.125 ml each) |
+    | ``max_speed`` | float | 0.15 | lip speed at action 1, m/s |
+    | ``max_tilt_rate`` | float | 60.0 | tilt rate at action 1, deg/s |
+    | ``max_tilt`` | float | 135.0 | largest tilt, deg |
+    | ``pour_threshold`` | int | 5 | particles out of the source that make a pour |
+    | ``pour_steps`` | int | 3 | steps in a row they must stay out |
+    | ``progress_weight`` | float | 1.0 | weight of ``progress`` |
+    | ``overshoot_weight`` | float | 2.0 | weight of ``overshoot`` |
+    | ``spill_weight`` | float | 2.0 | weight of ``spill`` |
+    | ``success_weight`` | float | 1.0 | weight of ``success`` |
+    | ``time_weight`` | float | 0.0 | weight of ``time`` |
+    | ``aim_weight`` | float | 0.0 | weight of ``aim`` |
+    | ``upright_weight`` | float | 0.0 | weight of ``upright`` |
+    | ``render_mode`` | str or None | None | ``"rgb_array"`` or ``"human"`` |
+
+    ``reset(options=...)`` accepts ``source``, ``target`` (names or mesh paths) and
+    ``target_amount`` (particles).
 
     ## Version History
-    * v0: initial version.
+    * v0 (this release): the fluid takes substeps by the CFL bound and puts back particles
+      that tunnelled into a wall (``info["fluid_corrections"]``), so no action raises; an
+      episode ends after a pour only when ``pour_threshold`` particles stayed out for
+      ``pour_steps`` steps (one particle flickering across the rim ended episodes
+      before); the fill is sized to the task by default (T + 100, was 1000); f4 counts
+      the fluid above the source's lowest rim vertex (the thesis's lip point, through
+      :mod:`pour_gym.features`; it was the held lip's height); feature ``in_source``
+      added; reward weights and the ``time``, ``aim`` and ``upright`` shaping terms are
+      arguments; ``num_threads`` added.
+    * v0 (first release): 1000 particles, six 1/60 s fluid steps per step.
     """
 
     def __init__(
@@ -120,48 +166,95 @@ class PourEnv(PourGymEnv):
         obs_mode: str = "features",
         fluid: str = "pbf",
         fluid_config: PBFConfig | dict | None = None,
-        source_particles: int = 1000,
+        num_threads: int | None = None,
+        source_particles: int | None = None,
         amount_range: tuple[int, int] = (100, 300),
         max_speed: float = 0.15,
         max_tilt_rate: float = 60.0,
         max_tilt: float = 135.0,
+        pour_threshold: int = 5,
+        pour_steps: int = 3,
+        progress_weight: float = 1.0,
+        overshoot_weight: float = 2.0,
+        spill_weight: float = 2.0,
+        success_weight: float = 1.0,
+        time_weight: float = 0.0,
+        aim_weight: float = 0.0,
+        upright_weight: float = 0.0,
         render_mode: str | None = None,
     ):
-        self._init_kwargs = dict(
+        EzPickle.__init__(
+            self,
             objects=objects,
             source_objects=source_objects,
             target_objects=target_objects,
             obs_mode=obs_mode,
             fluid=fluid,
             fluid_config=fluid_config,
+            num_threads=num_threads,
             source_particles=source_particles,
             amount_range=amount_range,
             max_speed=max_speed,
             max_tilt_rate=max_tilt_rate,
             max_tilt=max_tilt,
+            pour_threshold=pour_threshold,
+            pour_steps=pour_steps,
+            progress_weight=progress_weight,
+            overshoot_weight=overshoot_weight,
+            spill_weight=spill_weight,
+            success_weight=success_weight,
+            time_weight=time_weight,
+            aim_weight=aim_weight,
+            upright_weight=upright_weight,
             render_mode=render_mode,
         )
+        super().__init__(
+            fluid,
+            fluid_config,
+            num_threads,
+            render_mode,
+            Camera(distance=0.55, pitch=-30.0),
+            {
+                "progress": progress_weight,
+                "overshoot": overshoot_weight,
+                "spill": spill_weight,
+                "success": success_weight,
+                "time": time_weight,
+                "aim": aim_weight,
+                "upright": upright_weight,
+            },
+        )
         self._check_obs_mode(obs_mode)
-        if source_particles < 100:
+        if source_particles is not None and source_particles < 100:
             raise ValueError(f"source_particles must be at least 100, not {source_particles}")
         lo, hi = amount_range
         if not 1 <= lo <= hi:
             raise ValueError(f"amount_range must be (low, high) with 1 <= low <= high: {lo, hi}")
+        if pour_threshold < 1 or pour_steps < 1:
+            raise ValueError(
+                f"pour_threshold and pour_steps must be at least 1, not {pour_threshold}, "
+                f"{pour_steps}"
+            )
+        for name, value in (("max_speed", max_speed), ("max_tilt_rate", max_tilt_rate)):
+            if not value > 0:
+                raise ValueError(f"{name} must be positive, not {value}")
+        if not 0 < max_tilt <= 180:
+            raise ValueError(f"max_tilt must be in (0, 180] degrees, not {max_tilt}")
         self.sources = self._containers(source_objects if source_objects is not None else objects)
         self.targets = self._containers(target_objects if target_objects is not None else objects)
         self.obs_mode = obs_mode
-        self.source_particles = int(source_particles)
+        self.source_particles = None if source_particles is None else int(source_particles)
         self.amount_range = (int(lo), int(hi))
         self.max_speed = float(max_speed)
         self.max_tilt_rate = float(max_tilt_rate)
         self.max_tilt = float(max_tilt)
+        self.pour_threshold = int(pour_threshold)
+        self.pour_steps = int(pour_steps)
         self.dt = 0.1
-        self.substeps = 6
         names = FEATURE_NAMES if obs_mode == "features" else STATE_NAMES
         self.obs_names = names
         self.observation_space = spaces.Box(-OBS_LIMIT, OBS_LIMIT, (len(names),), np.float32)
         self.action_space = spaces.Box(-1.0, 1.0, (4,), np.float32)
-        self._setup(fluid, fluid_config, render_mode, Camera(distance=0.55, pitch=-30.0))
 
     # ------------------------------------------------------------------ episode
     def reset(self, *, seed: int | None = None, options: dict | None = None):
@@ -179,23 +272,31 @@ class PourEnv(PourGymEnv):
         self.target_pos = np.array([rng.uniform(0.15, 0.25), rng.uniform(-0.1, 0.1), 0.0])
         rot_t = Rotation.from_euler("z", self.target_yaw).as_matrix()
         self.world.teleport(self.target, self.target_pos, rot_t)
-        self._base_rot = Rotation.from_euler("z", np.pi).as_matrix()
+        self.source_base_rotation = Rotation.from_euler("z", np.pi).as_matrix()
         self._lip_local = np.array([gs.rim_center[0] - gs.rim_radius, gs.rim_center[1], gs.height])
         self.z_min = gt.height + gs.height + 0.01
         self.lip = np.array([0.0, 0.0, self.z_min + rng.uniform(0.0, 0.05)])
         self.tilt = 0.0
-        self.world.teleport(self.source, *self._source_pose(self.lip, self.tilt))
-        capacity_s = int(gs.cavity_volume / self.world.particle_volume)
-        capacity_t = int(gt.cavity_volume / self.world.particle_volume)
-        self.fill = min(self.source_particles, int(0.6 * capacity_s))
-        hi = max(1, min(self.amount_range[1], self.fill - 50, int(0.6 * capacity_t)))
+        self.world.teleport(self.source, *self.source_pose(self.lip, self.tilt))
+        v = self.world.particle_volume
+        capacity_s = int(0.6 * gs.cavity_volume / v)
+        capacity_t = int(0.6 * gt.cavity_volume / v)
+        fixed_fill = self.source_particles
+        if fixed_fill is None:  # sized to the task: T + FILL_MARGIN
+            most = capacity_s - FILL_MARGIN
+        else:
+            most = min(fixed_fill, capacity_s) - 50
+        hi = max(1, min(self.amount_range[1], most, capacity_t))
         lo = min(self.amount_range[0], hi)
         amount = options.get("target_amount")
         if amount is None:
             amount = int(rng.integers(lo, hi + 1))
-        if not 1 <= int(amount) <= self.fill:
+        amount = int(amount)
+        fill = fixed_fill if fixed_fill is not None else amount + FILL_MARGIN
+        self.fill = min(fill, capacity_s)
+        if not 1 <= amount <= self.fill:
             raise ValueError(f"target_amount must be in [1, {self.fill}] particles, not {amount}")
-        self.target_amount = int(amount)
+        self.target_amount = amount
         self.tolerance = max(5, round(0.1 * self.target_amount))
         self.world.fill(self.source, particles=self.fill)
         # The camera looks across the way from the source to the target.
@@ -203,54 +304,67 @@ class PourEnv(PourGymEnv):
         self.camera = Camera(
             target=(float(mid[0]), float(mid[1]), 0.1), distance=0.5, yaw=0.0, pitch=-20.0
         )
+        self._out_run = 0  # steps in a row with a pour's worth out of the source
         self._poured_any = False
+        self._corrections = 0
+        self._substeps = 0
         self._counts = self._count()
-        self._prev = self._counts
-        return self._observation(), self._info(terms=None)
+        self._potentials = self._potential()
+        return self._observation(), self._info()
 
     def step(self, action):
         """Move and tilt the source for ``dt`` = 0.1 s of simulated time."""
         a = self._check_action(action)
-        velocity = a[:3] * self.max_speed
-        rate = a[3] * self.max_tilt_rate
         lo = np.array([-0.1, -0.3, self.z_min])
         hi = np.array([0.45, 0.3, 0.5])
-        h = self.dt / self.substeps
-        for _ in range(self.substeps):
-            self.lip = np.clip(self.lip + velocity * h, lo, hi)
-            self.tilt = float(np.clip(self.tilt + rate * h, 0.0, self.max_tilt))
-            self.world.set_pose(self.source, *self._source_pose(self.lip, self.tilt))
-            self.world.step(h)
-        self._prev, self._counts = self._counts, self._count()
-        c, p = self._counts, self._prev
-        t = self.target_amount
-        terms = {
-            "progress": (min(c["poured"], t) - min(p["poured"], t)) / t,
-            "overshoot": -2.0 * (max(c["poured"] - t, 0) - max(p["poured"] - t, 0)) / t,
-            "spill": -2.0 * (c["spilled"] - p["spilled"]) / t,
-            "success": 0.0,
-        }
-        if c["in_source"] < self.fill:
-            self._poured_any = True
+        self.lip = np.clip(self.lip + a[:3] * self.max_speed * self.dt, lo, hi)
+        tilt = self.tilt + a[3] * self.max_tilt_rate * self.dt
+        self.tilt = float(np.clip(tilt, 0.0, self.max_tilt))
+        # The fluid moves the source there smoothly over the step, in as many substeps as
+        # the motion needs.
+        self.world.set_pose(self.source, *self.source_pose(self.lip, self.tilt))
+        self._substeps = self.world.step(self.dt)
+        self._corrections = self.world.corrections
+        prev, c = self._counts, self._count()
+        self._counts = c
+        out = self.fill - c["in_source"]
+        self._out_run = self._out_run + 1 if out >= self.pour_threshold else 0
+        self._poured_any = self._poured_any or self._out_run >= self.pour_steps
         settled = c["in_flight"] == 0
         upright = self.tilt < UPRIGHT_DEG
         terminated = bool(settled and ((self._poured_any and upright) or c["in_source"] == 0))
         success = terminated and self._succeeded()
-        if success:
-            terms["success"] = 1.0
-        reward = float(sum(terms.values()))
-        info = self._info(terms)
-        info["is_success"] = success
+        t = self.target_amount
+        potentials = self._potential()
+        terms = {
+            "progress": (min(c["poured"], t) - min(prev["poured"], t)) / t,
+            "overshoot": -(max(c["poured"] - t, 0) - max(prev["poured"] - t, 0)) / t,
+            "spill": -(c["spilled"] - prev["spilled"]) / t,
+            "success": float(success),
+            "time": -1.0,
+            "aim": potentials["aim"] - self._potentials["aim"],
+            "upright": potentials["upright"] - self._potentials["upright"],
+        }
+        self._potentials = potentials
+        reward, weighted = self._reward(terms)
+        info = self._info(weighted, success)
         return self._observation(), reward, terminated, False, info
 
     # ------------------------------------------------------------------ helpers
-    def _source_pose(self, lip: np.ndarray, tilt_deg: float):
-        rot = Rotation.from_euler("y", tilt_deg, degrees=True).as_matrix() @ self._base_rot
+    def source_pose(self, lip: np.ndarray, tilt_deg: float) -> tuple[np.ndarray, np.ndarray]:
+        """The source's (position, rotation) with its lip at ``lip`` (m), tilted (deg)."""
+        rot = self.source_rotation(tilt_deg)
         return lip - rot @ self._lip_local, rot
 
-    def _count(self) -> dict[str, int]:
+    def source_rotation(self, tilt_deg: float) -> np.ndarray:
+        """The source's rotation at a tilt (deg) towards +x, its lip facing the target."""
+        return Rotation.from_euler("y", tilt_deg, degrees=True).as_matrix() @ (
+            self.source_base_rotation
+        )
+
+    def _count(self) -> dict:
+        """Particles in the source, in the target, in flight and spilled (and where)."""
         census = self.world.census()
-        self._where = census.where
         elsewhere = census.where < 0
         speed = np.linalg.norm(self.world.fluid.v, axis=1) if census.elsewhere else None
         moving = elsewhere & (speed > RESTING_SPEED) if speed is not None else elsewhere
@@ -259,7 +373,17 @@ class PourEnv(PourGymEnv):
             "poured": int(census.counts[self.target.index]),
             "in_flight": int(np.count_nonzero(moving)),
             "spilled": int(np.count_nonzero(elsewhere & ~moving)),
+            "where": census.where,
         }
+
+    def _potential(self) -> dict[str, float]:
+        """Potentials of the shaping terms (their changes are the terms)."""
+        gt = self.target.asset.geometry
+        centre = self.target.to_world(gt.rim_center)
+        aim = -min(float(np.hypot(*(self.lip[:2] - centre[:2]))) / gt.rim_radius, 10.0)
+        c = self._counts
+        done = c["poured"] + c["in_flight"] >= self.target_amount - self.tolerance
+        return {"aim": aim, "upright": -self.tilt / 90.0 if done else 0.0}
 
     def _succeeded(self) -> bool:
         c = self._counts
@@ -274,26 +398,27 @@ class PourEnv(PourGymEnv):
         t = self.target_amount
         gs: ContainerGeometry = self.source.asset.geometry
         gt: ContainerGeometry = self.target.asset.geometry
+        v = self.world.particle_volume
         if self.obs_mode == "features":
             centre = self.target.to_world(gt.rim_center)
             x = self.world.particles
-            census_where = self._where
-            lip_z = self.lip[2]
-            in_src = census_where == self.source.index
-            above = np.count_nonzero(in_src & (x[:, 2] > lip_z))
-            v = self.world.particle_volume
-            flight = census_where < 0
+            s = self.source
+            f3, f4 = fluid_features(
+                gs, x, s.rotation, s.translation, v, inside=c["where"] == s.index
+            )
+            flight = c["where"] < 0
             stream = 0.0
             if np.any(flight):
-                d = np.hypot(x[flight, 0] - centre[0], x[flight, 1] - centre[1])
-                stream = float(d.mean() / gt.rim_radius)
+                tt = self.target
+                f1, _ = relative_distance_height(gt, x[flight], tt.rotation, tt.translation)
+                stream = float(f1.mean())
             obs = [
                 (centre[0] - self.lip[0]) / gt.rim_radius,
                 (centre[1] - self.lip[1]) / gt.rim_radius,
                 (self.lip[2] - centre[2]) / gt.height,
                 self.tilt / 90.0,
-                c["in_source"] * v / gs.cavity_volume,
-                above * v / gs.cavity_volume,
+                f3,
+                f4,
                 c["poured"] / t,
                 c["in_flight"] / t,
                 c["spilled"] / t,
@@ -303,6 +428,7 @@ class PourEnv(PourGymEnv):
                 gt.height / 0.1,
                 gs.rim_radius / 0.1,
                 gs.height / 0.1,
+                c["in_source"] / t,
             ]
         else:
             size_s = np.ptp(self.source.asset.mesh.bounds, axis=0)
@@ -325,24 +451,26 @@ class PourEnv(PourGymEnv):
             ]
         return np.clip(np.asarray(obs, dtype=np.float32), -OBS_LIMIT, OBS_LIMIT)
 
-    def _info(self, terms: dict | None) -> dict:
+    def _info(self, terms: dict | None = None, success: bool = False) -> dict:
+        """The step's (or reset's) info: the episode, the counts, the reward's terms."""
         c = self._counts
         v_ml = self.world.particle_volume * 1e6
-        info = {
-            "source": self.source.asset.meta.get("_spec", self.source.asset.name),
-            "target": self.target.asset.meta.get("_spec", self.target.asset.name),
+        return {
+            "source": self._names["source"],
+            "target": self._names["target"],
             "target_amount": self.target_amount,
             "target_ml": self.target_amount * v_ml,
             "tolerance": self.tolerance,
             "fill": self.fill,
-            **c,
+            **{k: c[k] for k in ("in_source", "poured", "in_flight", "spilled")},
             "poured_ml": c["poured"] * v_ml,
             "tilt_deg": self.tilt,
-            "is_success": False,
+            "poured_any": self._poured_any,
+            "fluid_corrections": self._corrections,
+            "fluid_substeps": self._substeps,
+            **(terms or {}),
+            "is_success": bool(success),
         }
-        if terms is not None:
-            info.update({f"reward_{k}": v for k, v in terms.items()})
-        return info
 
     def __repr__(self) -> str:
         return f"PourEnv(sources={self.sources}, targets={self.targets}, obs_mode={self.obs_mode})"

@@ -4,20 +4,21 @@ from __future__ import annotations
 
 import numpy as np
 from gymnasium import spaces
+from gymnasium.utils import EzPickle
 from scipy.spatial.transform import Rotation
 
 from pour_gym.envs.base import PourGymEnv
-from pour_gym.features import cavity_points, held_volume, lip_point
+from pour_gym.features import cavity_points, fluid_features, mouth_volume
 from pour_gym.fluid.pbf import PBFConfig
 from pour_gym.sim import Camera
 from pour_gym.sim.spawn import cavity_lattice
 
 LABEL_MODES = ("hydrostatic", "simulate")
-CORRECT, SPILL = 1.0, -2.0
 # Tilting is about the world y axis through the container's base, the top towards -x
 # (away from the handle, which the assets keep along +x).
 AXIS = np.array([0.0, -1.0, 0.0])
 TILT_TIME, HOLD_TIME = 6.0, 1.0  # s, for the simulated label
+STATE_LIMIT = 4.0  # the state observation's bound (sizes in 10 cm, a wide bowl is ~2)
 
 
 class TiltPourEnv(PourGymEnv):
@@ -28,25 +29,28 @@ class TiltPourEnv(PourGymEnv):
     fixed horizontal axis to a random angle. The agent predicts in one step whether fluid
     leaves it; the ground truth is in ``info["label"]``. As in the thesis, the feature f4
     is computed from the fluid at rest upright, rotated with the container to the angle:
-    the fluid above the lip (the lowest rim vertex) over the container's volume.
+    the fluid above the lip (the lowest rim vertex) over the container's volume
+    (:func:`pour_gym.features.fluid_features`).
 
     ``label_mode="hydrostatic"`` (default) labels by the quasi-static limit the thesis's
-    "tilted slowly" describes: the fluid pours when its volume exceeds what the cavity
-    holds below the lip at that angle (the particle fluid agrees within 2 deg on the pour
-    onset of a cylinder, ``tests/test_fluid.py``). ``label_mode="simulate"`` tilts the
-    particle fluid over 6 s and holds 1 s, and labels by whether 2 or more particles left.
+    "tilted slowly" describes: the water pours when its volume exceeds what the tilted
+    cavity holds below the lowest point of its mouth (the inner edge of the rim, which
+    water must pass; :func:`pour_gym.features.mouth_volume`). On straight cylinders this
+    flips within 1 degree of tan(theta) = (H - h) / R (``tests/test_envs.py``).
+    ``label_mode="simulate"`` tilts the particle fluid over 6 s and holds 1 s, and labels
+    by whether 2 or more particles left.
 
     ## Action Space
-    ``Box(-1, 1, (1,))``: positive predicts that the container pours.
+    ``Box(-1, 1, (1,), float32)``: positive predicts that the container pours.
 
     ## Observation Space
-    ``obs_mode="features"``: ``Box(0, 1, (1,))``, f4. ``obs_mode="state"``:
-    ``Box(-1, 2, (5,))``: the tilt angle (rad), the fill fraction and the container's
-    bounding-box size (in 10 cm).
+    ``obs_mode="features"``: ``Box(0, 1, (1,), float32)``, f4. ``obs_mode="state"``:
+    ``Box(-4, 4, (5,), float32)``: the tilt angle (rad), the fill fraction and the
+    container's bounding-box size (in 10 cm).
 
     ## Rewards
-    ``correct`` = +1 for a right prediction; ``spill`` = -2 for predicting no pour when it
-    pours; 0 for a false alarm. Terms in ``info``.
+    ``correct`` = 1 for a right prediction; ``spill`` = -1 for predicting no pour when it
+    pours; 0 for a false alarm. Each times its weight; terms in ``info``.
 
     ## Starting State
     A container from ``objects``; the fill uniform in ``fill_range`` (fraction of the
@@ -56,12 +60,28 @@ class TiltPourEnv(PourGymEnv):
     After the one step (terminated).
 
     ## Arguments
-    ``objects``, ``obs_mode``, ``fluid``, ``fluid_config``, ``label_mode``, ``fill_range``,
-    ``tilt_range``, ``render_mode``. ``reset(options=...)`` accepts ``container``,
-    ``fill`` and ``tilt_deg``.
+    | argument | type | default | meaning |
+    |---|---|---|---|
+    | ``objects`` | str, path or list | ``"train"`` | a split, names, mesh files, asset folders |
+    | ``obs_mode`` | str | ``"features"`` | ``"features"`` or ``"state"`` |
+    | ``fluid`` | str | ``"pbf"`` | ``"pbf"`` or ``"bullet"`` (simulated labels) |
+    | ``fluid_config`` | PBFConfig or dict | None | fluid parameters |
+    | ``num_threads`` | int or None | None | fluid threads (simulated labels) |
+    | ``label_mode`` | str | ``"hydrostatic"`` | ``"hydrostatic"`` or ``"simulate"`` |
+    | ``fill_range`` | (float, float) | (0.2, 0.9) | fill, fraction of the volume |
+    | ``tilt_range`` | (float, float) | (0, 90) | tilt, degrees |
+    | ``correct_weight`` | float | 1.0 | weight of ``correct`` |
+    | ``spill_weight`` | float | 2.0 | weight of ``spill`` |
+    | ``render_mode`` | str or None | None | ``"rgb_array"`` or ``"human"`` |
+
+    ``reset(options=...)`` accepts ``container``, ``fill`` and ``tilt_deg``.
 
     ## Version History
-    * v0: initial version.
+    * v0 (this release): the hydrostatic label measures from the mouth's lowest point (it
+      measured from the lowest rim vertex, the outer edge of a thick rim, and called pours
+      4 degrees early); f4 from :mod:`pour_gym.features`; reward weights and
+      ``num_threads`` are arguments.
+    * v0 (first release).
     """
 
     def __init__(
@@ -70,20 +90,35 @@ class TiltPourEnv(PourGymEnv):
         obs_mode: str = "features",
         fluid: str = "pbf",
         fluid_config: PBFConfig | dict | None = None,
+        num_threads: int | None = None,
         label_mode: str = "hydrostatic",
         fill_range: tuple[float, float] = (0.2, 0.9),
         tilt_range: tuple[float, float] = (0.0, 90.0),
+        correct_weight: float = 1.0,
+        spill_weight: float = 2.0,
         render_mode: str | None = None,
     ):
-        self._init_kwargs = dict(
+        EzPickle.__init__(
+            self,
             objects=objects,
             obs_mode=obs_mode,
             fluid=fluid,
             fluid_config=fluid_config,
+            num_threads=num_threads,
             label_mode=label_mode,
             fill_range=fill_range,
             tilt_range=tilt_range,
+            correct_weight=correct_weight,
+            spill_weight=spill_weight,
             render_mode=render_mode,
+        )
+        super().__init__(
+            fluid,
+            fluid_config,
+            num_threads,
+            render_mode,
+            Camera(distance=0.4, pitch=-20.0),
+            {"correct": correct_weight, "spill": spill_weight},
         )
         self._check_obs_mode(obs_mode)
         if label_mode not in LABEL_MODES:
@@ -103,11 +138,12 @@ class TiltPourEnv(PourGymEnv):
             self.observation_space = spaces.Box(0.0, 1.0, (1,), np.float32)
         else:
             self.obs_names = ("tilt_rad", "fill", "size_x", "size_y", "size_z")
-            self.observation_space = spaces.Box(-1.0, 4.0, (5,), np.float32)
+            self.observation_space = spaces.Box(-STATE_LIMIT, STATE_LIMIT, (5,), np.float32)
         self.action_space = spaces.Box(-1.0, 1.0, (1,), np.float32)
+        # Per container, computed once: the rest lattice (it never enters the world in the
+        # hydrostatic mode) and the cavity's voxel centres.
         self._lattices: dict[str, np.ndarray] = {}
         self._voxels: dict[str, np.ndarray] = {}
-        self._setup(fluid, fluid_config, render_mode, Camera(distance=0.4, pitch=-20.0))
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         """Choose container, fill and angle; ``options``: container, fill, tilt_deg."""
@@ -135,51 +171,47 @@ class TiltPourEnv(PourGymEnv):
         self.count = min(len(lattice), max(1, round(fill * g.cavity_volume / v)))
         self.rest = lattice[: self.count]
         self.rotation = Rotation.from_rotvec(np.radians(tilt) * AXIS).as_matrix()
-        self.asset = asset
-        self.f4 = self._f4()  # computed once: observation and info both report it
+        self.episode_asset = asset
+        # The thesis's f4: the fluid at rest upright, rotated with the container (all of
+        # it counts as in the container), above the lowest rim vertex.
+        self.f4 = fluid_features(
+            g, self.rest @ self.rotation.T, self.rotation, np.zeros(3), v,
+            inside=np.ones(self.count, dtype=bool),
+        )[1]  # fmt: skip
         self._world_ready = False
         return self._observation(), self._info()
-
-    def _f4(self) -> float:
-        """The fluid at rest upright, rotated with the container: above the lip / volume."""
-        g = self.asset.geometry
-        world = self.rest @ self.rotation.T
-        lip_z = lip_point(g, self.rotation, np.zeros(3))[2]
-        above = np.count_nonzero(world[:, 2] > lip_z)
-        return float(above * self.fluid_config.particle_volume / g.cavity_volume)
 
     def step(self, action):
         """Predict, then label the tilt (hydrostatically or by simulation) and score it."""
         a = self._check_action(action)
         predict = bool(a[0] > 0.0)
         self.label = self._simulate() if self.label_mode == "simulate" else self._hydrostatic()
-        terms = {"correct": 0.0, "spill": 0.0}
-        if predict == self.label:
-            terms["correct"] = CORRECT
-        elif self.label:
-            terms["spill"] = SPILL
-        info = self._info()
-        info.update({f"reward_{k}": v for k, v in terms.items()})
-        info.update(label=self.label, predicted=predict, is_success=predict == self.label)
-        return self._observation(), float(sum(terms.values())), True, False, info
+        terms = {
+            "correct": float(predict == self.label),
+            "spill": -float(self.label and not predict),
+        }
+        reward, weighted = self._reward(terms)
+        info = self._info(weighted, label=self.label, predicted=predict)
+        return self._observation(), reward, True, False, info
 
     def _hydrostatic(self) -> bool:
         volume = self.count * self.fluid_config.particle_volume
-        return volume > held_volume(self.asset.geometry, self.rotation, self._voxels[self.name])
+        geometry = self.episode_asset.geometry
+        return volume > mouth_volume(geometry, self.rotation, self._voxels[self.name])
 
     def _simulate(self) -> bool:
         container = self._place({"container": self.name})["container"]
         world = self.world
         world.teleport(container, np.zeros(3))
         world.add_particles(container.to_world(self.rest))
-        for _ in range(30):  # settle
-            world.step(1.0 / 60.0)
-        steps = round(TILT_TIME * 60)
-        for k in range(steps + round(HOLD_TIME * 60)):
+        world.step(0.5)  # settle
+        # Tilted in steps of 0.1 s: the fluid follows each smoothly in its own substeps.
+        steps = round(TILT_TIME / 0.1)
+        for k in range(steps + round(HOLD_TIME / 0.1)):
             angle = self.tilt * min((k + 1) / steps, 1.0)
             rot = Rotation.from_rotvec(np.radians(angle) * AXIS).as_matrix()
             world.set_pose(container, np.zeros(3), rot)
-            world.step(1.0 / 60.0)
+            world.step(0.1)
         self._world_ready = True
         return world.census().elsewhere >= 2
 
@@ -196,17 +228,21 @@ class TiltPourEnv(PourGymEnv):
         if self.obs_mode == "features":
             obs = np.array([self.f4])
         else:
-            size = np.ptp(self.asset.mesh.bounds, axis=0) / 0.1
+            size = np.ptp(self.episode_asset.mesh.bounds, axis=0) / 0.1
             obs = np.array([np.radians(self.tilt), self.fill, *size])
         space = self.observation_space
         return np.clip(obs, space.low, space.high).astype(np.float32)
 
-    def _info(self) -> dict:
-        return {
+    def _info(self, terms: dict | None = None, **outcome) -> dict:
+        """The episode's info; after the step also the reward's terms and the outcome."""
+        info = {
             "container": self.name,
             "fill": self.fill,
             "tilt_deg": self.tilt,
             "particles": self.count,
             "features": [self.f4],
-            "is_success": False,
+            **(terms or {}),
+            **outcome,
         }
+        info["is_success"] = bool(outcome) and outcome["predicted"] == outcome["label"]
+        return info

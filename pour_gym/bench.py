@@ -228,7 +228,8 @@ def bench_fluid(
     from pour_gym.cache import cache_dir
     from pour_gym.fluid import PBFConfig, PBFluid, build_sdf
     from pour_gym.fluid.bullet import BulletFluid, convex_parts
-    from pour_gym.sim.world import mesh_body, quiet_c_stdout
+    from pour_gym.sim.world import mesh_body
+    from pour_gym.stdio import redirect_stdout_fd
 
     cfg = PBFConfig()
     cases = [("pbf", n) for n in sizes] + [("bullet", n) for n in bullet_sizes]
@@ -243,7 +244,7 @@ def bench_fluid(
             fluid = PBFluid(pts, cfg)
             cup = fluid.add_collider(build_sdf(mesh, spacing=0.001))
         else:
-            with quiet_c_stdout():
+            with redirect_stdout_fd():
                 client = BulletClient(connection_mode=pybullet.DIRECT)
             client.createMultiBody(0.0, client.createCollisionShape(pybullet.GEOM_PLANE))
             convex = convex_parts(client, mesh, cache_dir("sdf"))
@@ -308,96 +309,163 @@ def fluid_table(result: dict) -> str:
 
 
 def _env_rate(make, vector: str | None, steps: int, seed: int = 0) -> float:
-    """Environment steps per second (all sub-environments together) over ``steps`` steps."""
+    """Environment steps per second (all sub-environments together) over ``steps`` steps.
+
+    ``vector``: None (one env), ``"sync"`` / ``"async"`` (Gymnasium's vector envs of two,
+    async with Gymnasium's default start method), ``"dummy"`` / ``"subproc_<n>"`` (SB3's).
+    Random actions; episodes restart as they end (their resets are in the time).
+    """
     import time
 
     import gymnasium as gym
 
     if vector is None:
-        env = make()
-    elif vector == "sync":
-        env = gym.vector.SyncVectorEnv([make, make])
+        env, n = make(), 1
+    elif vector in ("sync", "async"):
+        cls = gym.vector.SyncVectorEnv if vector == "sync" else gym.vector.AsyncVectorEnv
+        env, n = cls([make, make]), 2
     else:
-        import os
+        from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 
-        # Spawned workers (numba's OpenMP threads do not survive fork()), each with its
-        # share of the cores: two workers of two threads on two cores fight for them.
-        threads = os.environ.get("NUMBA_NUM_THREADS")
-        os.environ["NUMBA_NUM_THREADS"] = str(max(1, (os.cpu_count() or 2) // 2))
-        try:
-            env = gym.vector.AsyncVectorEnv([make, make], context="spawn")
-        finally:
-            if threads is None:
-                os.environ.pop("NUMBA_NUM_THREADS")
-            else:
-                os.environ["NUMBA_NUM_THREADS"] = threads
-    n = 1 if vector is None else 2
-    env.reset(seed=seed)
-    env.action_space.seed(seed)
-    env.step(env.action_space.sample())  # warm-up: assets, fields and kernels loaded
+        n = 1 if vector == "dummy" else int(vector.split("_")[1])
+        env = DummyVecEnv([make]) if vector == "dummy" else SubprocVecEnv([make] * n)
+    sb3 = vector is not None and vector not in ("sync", "async")
+    space = env.action_space
+    space.seed(seed)
+
+    def act():
+        return np.stack([space.sample() for _ in range(n)]) if sb3 else space.sample()
+
+    if sb3:
+        env.seed(seed)
+        env.reset()
+    else:
+        env.reset(seed=seed)
+    env.step(act())  # warm-up: assets, fields and kernels loaded
     t = time.perf_counter()
     for _ in range(steps):
-        _, _, terminated, truncated, _ = env.step(env.action_space.sample())
-        if vector is None and (terminated or truncated):
+        out = env.step(act())
+        if vector is None and (out[2] or out[3]):
             env.reset()
     rate = steps * n / (time.perf_counter() - t)
     env.close()
     return rate
 
 
-def bench_envs(steps: dict[str, int] | None = None, repeats: int = 3) -> dict:
-    """Steps per second of every environment at its defaults, alone and vectorised by 2.
+def _pour_realtime(kwargs: dict, episodes: int, seed: int = 0) -> float:
+    """Simulated s per wall s of the scripted policy's episode steps, red cup -> broad cup."""
+    import time
 
-    Random actions; one-step environments count an episode per step. Pour-v0 also reports
-    simulated seconds per wall second (a step is 0.1 s).
+    import gymnasium as gym
+
+    from pour_gym.agents.scripted import ScriptedPourPolicy
+
+    env = gym.make(
+        "PourGym/Pour-v0", source_objects="red_cup", target_objects="broad_cup", **kwargs
+    )
+    policy = ScriptedPourPolicy()
+    steps, wall = 0, 0.0
+    for k in range(episodes + 1):  # the first episode loads and compiles: not timed
+        obs, _ = env.reset(seed=seed + k)
+        policy.reset()
+        done = False
+        while not done:
+            action = policy(obs)
+            t = time.perf_counter()
+            obs, _, terminated, truncated, _ = env.step(action)
+            if k > 0:
+                wall += time.perf_counter() - t
+                steps += 1
+            done = terminated or truncated
+    env.close()
+    return steps * env.unwrapped.dt / wall
+
+
+def bench_envs(repeats: int = 3, steps: int = 200) -> dict:
+    """Speed of the environments at their defaults, side by side in one run.
+
+    - ``pour_v0``: the scripted policy pouring from the red cup into the broad cup, episode
+      steps only: simulated seconds per wall second (``realtime``), steps per second, and
+      the same with the fill of 1000 particles the first release used (``realtime_1000``).
+    - ``vec``: Pour-v0 env-steps per second under random actions, SB3's vector envs:
+      ``dummy_1`` (one env in this process, default threads), ``one_thread`` (the same
+      with ``num_threads=1``), ``subproc_2`` and ``subproc_4`` (worker processes).
+    - ``rows``: the one-step environments alone and vectorised by two (Gymnasium's).
 
     Args:
-        steps: steps per timed run by environment id (defaults: 100 for Pour-v0, 60 for
-            the one-step environments).
         repeats: timed runs per case; the median is reported.
-
-    Returns:
-        ``{"rows": [{"env", "mode", "steps_per_s", "realtime"}...]}``.
+        steps: steps per timed run of the vector cases.
     """
     import functools
 
     import gymnasium as gym
 
     import pour_gym  # noqa: F401 - registers the environments
-    from pour_gym.envs import ENV_IDS
 
-    steps = steps or {}
+    cases = 2 + 4 + 2 * 3
+    bar = tqdm(total=cases * repeats, desc="bench envs", file=sys.stderr)
+
+    def median(fn) -> float:
+        runs = []
+        for r in range(repeats):
+            runs.append(fn(r))
+            bar.update()
+        return float(statistics.median(runs))
+
+    realtime = median(lambda r: _pour_realtime({}, 2, seed=100 * r))
+    realtime_1000 = median(lambda r: _pour_realtime({"source_particles": 1000}, 2, seed=100 * r))
+    pour = functools.partial(gym.make, "PourGym/Pour-v0")
+    single = functools.partial(gym.make, "PourGym/Pour-v0", num_threads=1)
+    vec = {
+        "dummy_1": median(lambda r: _env_rate(pour, "dummy", steps, seed=r)),
+        "one_thread": median(lambda r: _env_rate(single, "dummy", steps, seed=r)),
+        "subproc_2": median(lambda r: _env_rate(pour, "subproc_2", steps, seed=r)),
+        "subproc_4": median(lambda r: _env_rate(pour, "subproc_4", steps, seed=r)),
+    }
     rows = []
-    bar = tqdm(total=len(ENV_IDS) * 3 * repeats, desc="bench envs", file=sys.stderr)
-    for env_id in ENV_IDS:
-        n = steps.get(env_id, 100 if env_id == "PourGym/Pour-v0" else 60)
+    for env_id in ("PourGym/ParticleDrop-v0", "PourGym/TiltPour-v0"):
         make = functools.partial(gym.make, env_id)
         for mode in (None, "sync", "async"):
-            runs = []
-            for r in range(repeats):
-                runs.append(_env_rate(make, mode, n, seed=r))
-                bar.update()
-            rate = statistics.median(runs)
-            dt = gym.make(env_id).unwrapped.dt
-            rows.append(
-                {
-                    "env": env_id,
-                    "mode": mode or "single",
-                    "steps_per_s": rate,
-                    "realtime": rate * dt if env_id == "PourGym/Pour-v0" else None,
-                }
-            )
+            rate = median(lambda r, make=make, mode=mode: _env_rate(make, mode, 60, seed=r))
+            rows.append({"env": env_id, "mode": mode or "single", "steps_per_s": rate})
     bar.close()
-    return {"rows": rows}
+    return {
+        "pour_v0": {
+            "realtime": realtime,
+            "steps_per_s": realtime / 0.1,
+            "realtime_1000": realtime_1000,
+        },
+        "vec": vec,
+        "ratios": {
+            "subproc_2_over_one_thread": vec["subproc_2"] / vec["one_thread"],
+            "subproc_2_over_default": vec["subproc_2"] / vec["dummy_1"],
+        },
+        "rows": rows,
+    }
 
 
 def envs_table(result: dict) -> str:
-    """Markdown table of :func:`bench_envs`."""
+    """Markdown tables of :func:`bench_envs`."""
+    p, v, q = result["pour_v0"], result["vec"], result["ratios"]
     lines = [
-        "| environment | mode | steps/s (median) | simulated s per wall s |",
-        "|---|---|---:|---:|",
+        "| Pour-v0, scripted policy, red cup -> broad cup | simulated s per wall s |",
+        "|---|---:|",
+        f"| defaults (fill T + 100) | {p['realtime']:.2f} |",
+        f"| 1000 particles | {p['realtime_1000']:.2f} |",
+        "",
+        "| Pour-v0, random actions, SB3 vector env | env-steps/s |",
+        "|---|---:|",
+        f"| DummyVecEnv, 1 env, default threads | {v['dummy_1']:.1f} |",
+        f"| DummyVecEnv, 1 env, num_threads=1 | {v['one_thread']:.1f} |",
+        f"| SubprocVecEnv, 2 workers | {v['subproc_2']:.1f} |",
+        f"| SubprocVecEnv, 4 workers | {v['subproc_4']:.1f} |",
+        "",
+        f"SubprocVecEnv(2) over one env on one thread: {q['subproc_2_over_one_thread']:.2f}x; "
+        f"over one env at its default threads: {q['subproc_2_over_default']:.2f}x",
+        "",
+        "| environment | mode | steps/s (median) |",
+        "|---|---|---:|",
     ]
     for r in result["rows"]:
-        rt = "" if r["realtime"] is None else f"{r['realtime']:.2f}"
-        lines.append(f"| {r['env']} | {r['mode']} | {r['steps_per_s']:.1f} | {rt} |")
+        lines.append(f"| {r['env']} | {r['mode']} | {r['steps_per_s']:.1f} |")
     return "\n".join(lines)

@@ -9,42 +9,17 @@ ends with a one-line message and exit status 2, never a traceback.
 from __future__ import annotations
 
 import argparse
-import contextlib
 import json
-import os
 import sys
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from pathlib import Path
 
-import numpy as np
-
-from pour_gym.errors import InputError, SimulationError
-
-
-@contextlib.contextmanager
-def stdout_to_stderr() -> Iterator[None]:
-    """Send everything written to file descriptor 1 to descriptor 2 for the duration."""
-    sys.stdout.flush()
-    saved = os.dup(1)
-    try:
-        os.dup2(2, 1)
-        yield
-    finally:
-        sys.stdout.flush()
-        os.dup2(saved, 1)
-        os.close(saved)
-
+from pour_gym.errors import ClosedContainerError, InputError, SimulationError
+from pour_gym.stdio import redirect_stdout_fd
+from pour_gym.texttable import text_table
 
 Output = tuple[object, Callable[[], str]]
 """What a command returns: the JSON document and a function that formats it as text."""
-
-
-def _fmt_table(rows: list[list[str]], header: list[str]) -> str:
-    widths = [max(len(str(r[i])) for r in [header, *rows]) for i in range(len(header))]
-    line = "  ".join(f"{{:<{w}}}" for w in widths)
-    out = [line.format(*header), line.format(*["-" * w for w in widths])]
-    out += [line.format(*map(str, r)) for r in rows]
-    return "\n".join(out)
 
 
 def cmd_objects(args: argparse.Namespace) -> Output:
@@ -80,7 +55,7 @@ def cmd_objects(args: argparse.Namespace) -> Output:
             ]
             for d in doc
         ]
-        return _fmt_table(rows, ["name", "height cm", "rim radius cm", "volume ml", "handle"])
+        return text_table(rows, ["name", "height cm", "rim radius cm", "volume ml", "handle"])
 
     return (doc, text)
 
@@ -115,7 +90,7 @@ def cmd_scan(args: argparse.Namespace) -> Output:
 def cmd_reconstruct(args: argparse.Namespace) -> Output:
     """Reconstruct a mesh from a scan of a catalogue object or from a point cloud file."""
     from pour_gym.fileio import load_point_cloud, save_mesh
-    from pour_gym.modelgen import generate_model
+    from pour_gym.modelgen import generate_model, reconstruct_text
     from pour_gym.objects import get_spec
     from pour_gym.reconstruct import ReconstructConfig
 
@@ -136,50 +111,7 @@ def cmd_reconstruct(args: argparse.Namespace) -> Output:
 
         render_mesh(result.reconstruction.mesh, args.png, title=mesh_path.stem)
         report["png"] = str(args.png)
-    return (report, lambda: _reconstruct_text(report))
-
-
-def _reconstruct_text(report: dict) -> str:
-    """A table of the report's dimensions per model (and errors for catalogue objects)."""
-    rows = []
-    for model, m in report["models"].items():
-        err = m.get("errors")
-        row = [
-            model + (" *" if model == report["inner"] else ""),
-            f"{m['height'] * 100:.2f}",
-            f"{m['rim_radius'] * 100:.2f}",
-            f"{m['volume'] * 1e6:.1f}",
-        ]
-        if err:
-            row += [
-                f"{err['height']['rel_error']:.1%}",
-                f"{err['rim_radius']['rel_error']:.1%}",
-                f"{err['volume']['rel_error']:.1%}",
-                f"{m['chamfer_distance'] * 1000:.2f}",
-            ]
-        rows.append(row)
-    header = ["model", "height cm", "radius cm", "volume ml"]
-    if "thesis" in report:
-        t = report["thesis"]
-        rows.append(
-            [
-                "thesis (paper)",
-                f"{t['height']['measured'] * 100:.2f}",
-                f"{t['rim_radius']['measured'] * 100:.2f}",
-                f"{t['volume']['measured'] * 1e6:.1f}",
-                f"{t['height']['rel_error']:.1%}",
-                f"{t['rim_radius']['rel_error']:.1%}",
-                f"{t['volume']['rel_error']:.1%}",
-                "-",
-            ]
-        )
-        header += ["height err", "radius err", "volume err", "chamfer mm"]
-    lines = [
-        f"{report['n_points']} points, {report['seconds']:.1f} s; mesh: {report['mesh']} "
-        f"(report {report['report']}); * = the written model",
-        _fmt_table(rows, header),
-    ]
-    return "\n".join(lines)
+    return (report, lambda: reconstruct_text(report))
 
 
 def cmd_measure(args: argparse.Namespace) -> Output:
@@ -190,6 +122,8 @@ def cmd_measure(args: argparse.Namespace) -> Output:
     mesh, _ = _mesh_or_object(args.source, args.scale)
     validate_mesh(mesh, name=args.source, watertight=True)
     d = container_dimensions(mesh)
+    if d.closed is not None:
+        raise ClosedContainerError(args.source, d.closed, flag=False)
     doc = {
         "height": d.height,
         "rim_radius": d.rim_radius,
@@ -209,7 +143,7 @@ def cmd_report(args: argparse.Namespace) -> Output:
     """Tables beside the thesis's: reconstruction (chapter 3) or warping (chapter 4)."""
     from tqdm import tqdm
 
-    from pour_gym.modelgen import generate_model
+    from pour_gym.modelgen import generate_model, reconstruction_table
     from pour_gym.objects import OBJECT_NAMES
 
     if args.what == "generalisation":
@@ -220,7 +154,7 @@ def cmd_report(args: argparse.Namespace) -> Output:
         summary = study_report(args.runs, args.out)
         return (summary, lambda: (Path(args.out) / "report.md").read_text())
     if args.what == "warping":
-        from pour_gym.assets import label_container
+        from pour_gym.assets import label_container, warping_tables
 
         warp = {}
         for name in tqdm(OBJECT_NAMES, desc="label from red_cup", file=sys.stderr):
@@ -233,44 +167,13 @@ def cmd_report(args: argparse.Namespace) -> Output:
     return (reports, lambda: reconstruction_table(reports))
 
 
-def reconstruction_table(reports: dict[str, dict]) -> str:
-    """Markdown table of relative errors per object: thesis paper, thesis model, offset."""
-    quantities = ("height", "rim_radius", "volume")
-    header = (
-        "| object | "
-        + " | ".join(
-            f"{q} {src}"
-            for q in ("height", "radius", "volume")
-            for src in ("paper", "thesis", "offset")
-        )
-        + " | chamfer mm (thesis / offset) |"
-    )
-    lines = [header, "|---" + "|---:" * 10 + "|"]
-    sums = np.zeros(9)
-    for name, r in reports.items():
-        cells = []
-        for q in quantities:
-            cells += [
-                r["thesis"][q]["rel_error"],
-                r["models"]["thesis"]["errors"][q]["rel_error"],
-                r["models"]["offset"]["errors"][q]["rel_error"],
-            ]
-        sums += cells
-        chamfer = "{:.2f} / {:.2f}".format(
-            r["models"]["thesis"]["chamfer_distance"] * 1000,
-            r["models"]["offset"]["chamfer_distance"] * 1000,
-        )
-        lines.append(f"| {name} | " + " | ".join(f"{c:.1%}" for c in cells) + f" | {chamfer} |")
-    mean = sums / len(reports)
-    lines.append("| **mean** | " + " | ".join(f"**{c:.1%}**" for c in mean) + " | |")
-    return "\n".join(lines)
-
-
 def cmd_label(args: argparse.Namespace) -> Output:
     """Label a container by warping a labelled source onto it; write the asset."""
     from pour_gym.assets import label_container, write_asset
 
-    asset = label_container(args.target, args.source, args.method, args.scale)
+    asset = label_container(
+        args.target, args.source, args.method, args.scale, allow_closed=args.allow_closed
+    )
     out = write_asset(asset, args.out)
     doc = dict(asset.meta, out=str(out))
 
@@ -303,45 +206,6 @@ def cmd_build_assets(args: argparse.Namespace) -> Output:
     return (done, lambda: f"wrote {len(done)} assets under {root}")
 
 
-def warping_tables(reports: dict[str, dict]) -> str:
-    """Tables 4.1-4.3 and per-part IoU beside the thesis's numbers."""
-    out = []
-    for key, title, unit, factor in (
-        ("height", "Table 4.1: height", "cm", 100.0),
-        ("rim_radius", "Table 4.2: rim radius", "cm", 100.0),
-        ("volume", "Table 4.3: volume (cavity below the rim)", "ml", 1e6),
-        ("volume_convex_hull", "Table 4.3: volume (convex hull, thesis 5.1)", "ml", 1e6),
-    ):
-        out.append(f"### {title}\n")
-        out.append(
-            f"| object | real {unit} | thesis {unit} | thesis error | thesis method {unit} "
-            f"| error | best {unit} | error |"
-        )
-        out.append("|---|---:|---:|---:|---:|---:|---:|---:|")
-        errs = np.zeros(3)
-        for name, by_method in reports.items():
-            t = by_method["thesis"]["tables"][key]
-            b = by_method["best"]["tables"][key]
-            errs += [t["thesis_rel_error"], t["rel_error"], b["rel_error"]]
-            out.append(
-                f"| {name} | {t['real'] * factor:.2f} | {t['thesis_computed'] * factor:.2f} | "
-                f"{t['thesis_rel_error']:.1%} | {t['computed'] * factor:.2f} | "
-                f"{t['rel_error']:.1%} | {b['computed'] * factor:.2f} | {b['rel_error']:.1%} |"
-            )
-        m = errs / len(reports)
-        out.append(f"| **mean** | | | **{m[0]:.1%}** | | **{m[1]:.1%}** | | **{m[2]:.1%}** |\n")
-    out.append("### Per-part IoU against ground truth (thesis method / best)\n")
-    out.append("| object | rim | handle | container | outside |")
-    out.append("|---|---:|---:|---:|---:|")
-    for name, by_method in reports.items():
-        cells = []
-        for part in ("rim", "handle", "container", "outside"):
-            pair = (by_method["thesis"]["iou"][part], by_method["best"]["iou"][part])
-            cells.append(" / ".join("-" if v is None else f"{v:.2f}" for v in pair))
-        out.append(f"| {name} | " + " | ".join(cells) + " |")
-    return "\n".join(out)
-
-
 def cmd_bench(args: argparse.Namespace) -> Output:
     """Benchmarks."""
     from pour_gym.bench import (
@@ -371,6 +235,24 @@ def cmd_bench(args: argparse.Namespace) -> Output:
     sizes = [int(s) for s in (args.sizes or "5000,10000,25000,50000,100000").split(",")]
     rows = bench_reconstruct(sizes, repeats=args.repeats)
     return ({"reconstruct": rows}, lambda: reconstruct_table(rows))
+
+
+def cmd_soak(args: argparse.Namespace) -> Output:
+    """Random actions over containers: exceptions, false endings, lost particles, walls."""
+    from pour_gym.assets import expand_containers
+    from pour_gym.soak import soak, soak_table
+
+    objects = list(expand_containers(args.objects)) if args.objects else None
+    if args.user_meshes or objects is None:
+        from pour_gym.cache import cache_dir
+        from pour_gym.soak import user_meshes
+
+        if objects is not None:
+            objects += user_meshes(cache_dir("soak"))
+    if args.episodes < 1 or args.steps < 1:
+        raise InputError("--episodes and --steps must be at least 1")
+    doc = soak(args.env, objects, args.episodes, args.steps, args.seed)
+    return (doc, lambda: soak_table(doc))
 
 
 def cmd_pour(args: argparse.Namespace) -> Output:
@@ -437,13 +319,13 @@ def cmd_experiment(args: argparse.Namespace) -> Output:
 
 
 def cmd_evaluate(args: argparse.Namespace) -> Output:
-    """Evaluate a trained model or the scripted policy on every container."""
-    from pour_gym.agents.evaluate import evaluate_policy, evaluation_table, sb3_policy
+    """Evaluate a trained model, the scripted policy or a searched one on the containers."""
+    from pour_gym.agents.evaluate import evaluate_policy, evaluation_table
+    from pour_gym.agents.rollout import sb3_policy
     from pour_gym.assets import expand_containers
 
     env_kwargs: dict = {}
     trained: list[str] = []
-    reset = None
     if args.policy == "scripted" or args.policy.endswith(".json"):
         from pour_gym.agents.scripted import ScriptedPourPolicy
         from pour_gym.agents.search import load_search
@@ -451,40 +333,33 @@ def cmd_evaluate(args: argparse.Namespace) -> Output:
         if args.env != "PourGym/Pour-v0":
             raise InputError("the scripted policy pours: use --env PourGym/Pour-v0")
         if args.policy == "scripted":
-            scripted = ScriptedPourPolicy()
+            policy = ScriptedPourPolicy()
         else:  # the best of a policy search, trained on the containers it searched on
             found = load_search(args.policy)
-            scripted = ScriptedPourPolicy(**found["best"])
+            policy = ScriptedPourPolicy(**found["best"])
             trained = found.get("sources", [])
-        policy, reset = scripted, scripted.reset
     else:
-        model_path = Path(args.policy)
-        if not model_path.is_file():
-            raise InputError(f"no model file {args.policy!r} (or use 'scripted')")
-        config_path = model_path.parent / "config.json"
-        config = json.loads(config_path.read_text()) if config_path.is_file() else {}
-        from stable_baselines3 import PPO, SAC, TD3
+        from pour_gym.agents.training import load_run
 
-        algo = config.get("algo", args.algo)
-        if algo not in ("sac", "ppo", "td3"):
-            raise InputError("which algorithm made the model? pass --algo sac|ppo|td3")
-        model = {"sac": SAC, "ppo": PPO, "td3": TD3}[algo].load(model_path)
-        policy = sb3_policy(model)
+        run = load_run(args.policy, args.algo)
+        if run.config.get("env") and run.config["env"] != args.env:
+            raise InputError(f"the model was trained on {run.config['env']}, not {args.env}")
+        policy = sb3_policy(run)
         env_kwargs = {
-            "obs_mode": config.get("obs_mode", "features"),
-            **config.get("env_kwargs", {}),
+            "obs_mode": run.config.get("obs_mode", "features"),
+            **run.config.get("env_kwargs", {}),
         }
-        if config.get("env") and config["env"] != args.env:
-            raise InputError(f"the model was trained on {config['env']}, not {args.env}")
-        trained = list(expand_containers(config.get("objects", []) or "train"))
+        trained = list(expand_containers(run.config.get("objects") or "train"))
     result = evaluate_policy(
         policy,
         args.env,
         expand_containers(args.objects),
         args.episodes,
+        seed=args.seed,
         env_kwargs=env_kwargs,
-        reset=reset,
         trained_on=trained,
+        source_objects=expand_containers(args.source_objects) if args.source_objects else None,
+        target_objects=expand_containers(args.target_objects) if args.target_objects else None,
     )
     return (result, lambda: evaluation_table(result))
 
@@ -600,6 +475,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True, help="asset directory to write")
     p.add_argument("--method", choices=["best", "thesis"], default="best")
     p.add_argument("--scale", type=float, default=1.0, help="mesh units to m")
+    p.add_argument(
+        "--allow-closed",
+        action="store_true",
+        help="label a container with no opening (a capped scan) anyway; envs refuse it",
+    )
 
     p = add("build-assets", cmd_build_assets, "label every catalogue container into assets/")
     p.add_argument("--source", default="red_cup")
@@ -615,6 +495,16 @@ def build_parser() -> argparse.ArgumentParser:
         help="fluid: particle counts for the rigid-sphere backend ('' for none)",
     )
     p.add_argument("--repeats", type=int, default=3)
+
+    p = add("soak", cmd_soak, "random actions over containers: what must never happen")
+    p.add_argument("--env", default="PourGym/Pour-v0")
+    p.add_argument(
+        "--objects", help="containers (default: the catalogue and two meshes like users')"
+    )
+    p.add_argument("--user-meshes", action="store_true", help="add the two user-like meshes")
+    p.add_argument("--episodes", type=int, default=20, help="episodes per container")
+    p.add_argument("--steps", type=int, default=250, help="most steps per episode")
+    p.add_argument("--seed", type=int, default=0)
 
     p = add("pour", cmd_pour, "scripted pour from a held container into another (fluid demo)")
     p.add_argument("--source", default="red_cup", help="held container (catalogue or asset dir)")
@@ -637,6 +527,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--env", default="PourGym/Pour-v0")
     p.add_argument("--objects", default="all", help="split or comma-separated containers")
     p.add_argument("--episodes", type=int, default=5, help="episodes per container")
+    p.add_argument("--seed", type=int, default=10_000, help="seed of the first episode")
+    p.add_argument("--source-objects", help="Pour-v0: sources of a source x target matrix of rows")
+    p.add_argument("--target-objects", help="Pour-v0: targets of the matrix (default: --objects)")
     p.add_argument("--algo", help="algorithm, if the model has no config.json beside it")
 
     p = add("search", cmd_search, "CMA-ES policy search over the scripted policy (Pour-v0)")
@@ -682,7 +575,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         if args.json:
-            with stdout_to_stderr():
+            with redirect_stdout_fd(2):
                 doc, _ = args.func(args)
             print(json.dumps(doc, indent=2))
         else:

@@ -109,6 +109,7 @@ def pour_episode(
     import gymnasium as gym
     from tqdm import tqdm
 
+    from pour_gym.agents.rollout import rollout
     from pour_gym.agents.scripted import ScriptedPourPolicy
     from pour_gym.video import write_video
 
@@ -118,18 +119,12 @@ def pour_episode(
     options = {"source": source, "target": target}
     if target_amount is not None:
         options["target_amount"] = target_amount
-    obs, info = env.reset(seed=seed, options=options)
-    frames = [env.render()]
-    done = False
     bar = tqdm(desc="pour episode", unit="step", file=sys.stderr)
-    while not done:
-        obs, _, terminated, truncated, info = env.step(policy(obs))
-        frames.append(env.render())
-        done = terminated or truncated
-        bar.update()
+    episode = rollout(env, policy, seed=seed, options=options, frames=True, progress=bar.update)
     bar.close()
     env.close()
-    video = write_video(frames, out / "pour_episode.gif", fps=10)
+    info = episode.info
+    video = write_video(episode.frames, out / "pour_episode.gif", fps=10)
     text = (
         f"Pour-v0, scripted policy, {source} -> {target}: poured {info['poured']} particles "
         f"({info['poured_ml']:.1f} ml) for a target of {info['target_amount']} "

@@ -14,8 +14,10 @@ vectorised over particles:
 - f1 relative distance: horizontal distance of a particle to the rim centre / rim radius;
 - f2 relative height: height of a particle above the rim centre / height;
 - f3 fluid volume: fluid volume in the container / container volume;
-- f4 fluid volume above the lip: fluid volume in the container above the lip point /
-  container volume.
+- f4 fluid volume above the lip: fluid volume in the container above the lip point (the
+  lowest rim vertex in the container's current pose) / container volume.
+
+The environments compute their observations with these functions: one definition of each.
 
 Fluid volume comes either from the particle count (incompressible fluid: N times the volume
 per particle) or from the local density of thesis 5.2, ``rho(p) = sum_n [|p - p_n| <
@@ -74,8 +76,23 @@ class ContainerGeometry:
         }
 
 
+CAVITY_VOXEL = 7.5e-4  # m: a tenth of a millilitre of resolution at cup scale
+
+
+def container_cavity(mesh: trimesh.Trimesh, voxel: float = CAVITY_VOXEL) -> Cavity:
+    """The water an upright container mesh holds (watertight or not), as voxels.
+
+    A single watertight body is voxelised by ray parity; any other mesh (holes, or bodies
+    that overlap, where parity counts a point inside two of them as outside) as a shell.
+    """
+    return cavity(mesh, voxel, closed=bool(mesh.is_watertight) and mesh.body_count == 1)
+
+
 def container_geometry(
-    mesh: trimesh.Trimesh, labels: np.ndarray, voxel: float = 7.5e-4
+    mesh: trimesh.Trimesh,
+    labels: np.ndarray,
+    voxel: float = CAVITY_VOXEL,
+    water: Cavity | None = None,
 ) -> ContainerGeometry:
     """Geometry of an upright labelled container.
 
@@ -83,6 +100,7 @@ def container_geometry(
         mesh: the container, upright, in m (watertight or not).
         labels: (V,) part of each vertex.
         voxel: voxel edge for the cavity, in m.
+        water: :func:`container_cavity` of the mesh, if already computed.
 
     Returns:
         The geometry.
@@ -98,14 +116,17 @@ def container_geometry(
     inner = v[labels == Part.CONTAINER]
     if len(rim) < 3 or len(inner) < 4:
         raise InputError(
-            "the labels have no rim or no container: label the mesh first (pour-gym label)"
+            f"the labels have {len(rim)} rim and {len(inner)} container vertices (at least 3 "
+            "and 4 needed): label the mesh with pour-gym label, and check that it is an open "
+            "container"
         )
     centre = rim.mean(axis=0)
     try:
         hull = float(ConvexHull(inner).volume)
     except QhullError:
         hull = 0.0
-    water = cavity(mesh, voxel, closed=bool(mesh.is_watertight))
+    if water is None:
+        water = container_cavity(mesh, voxel)
     return ContainerGeometry(
         rim_center=centre,
         rim_radius=float(np.linalg.norm(rim - centre, axis=1).mean()),
@@ -192,6 +213,11 @@ def density_volume(points: np.ndarray, sigma: float) -> float:
     return float(np.sum(1.0 / rho))
 
 
+def fill_fraction(volume: float, geometry: ContainerGeometry) -> float:
+    """Thesis f3 of a fluid volume (m^3) in a container: the volume over the container's."""
+    return float(volume) / geometry.cavity_volume
+
+
 def fluid_features(
     geometry: ContainerGeometry,
     points: np.ndarray,
@@ -220,14 +246,48 @@ def fluid_features(
     lip_z = lip_point(geometry, rotation, translation)[2]
     n_in = int(np.count_nonzero(inside))
     n_above = int(np.count_nonzero(inside & (np.asarray(points)[:, 2] > lip_z)))
-    vc = geometry.cavity_volume
-    return count_volume(n_in, particle_volume) / vc, count_volume(n_above, particle_volume) / vc
+    return (
+        fill_fraction(count_volume(n_in, particle_volume), geometry),
+        fill_fraction(count_volume(n_above, particle_volume), geometry),
+    )
 
 
 def cavity_points(geometry: ContainerGeometry) -> np.ndarray:
     """Centres of the cavity's water voxels, (M, 3), in the container's frame, m."""
     cav = geometry.cavity
     return cav.origin + cav.voxel * np.argwhere(cav.mask)
+
+
+def mouth_volume(
+    geometry: ContainerGeometry, rotation: np.ndarray, points: np.ndarray | None = None
+) -> float:
+    """Water a container holds at rest when tilted, up to the lowest point of its mouth, m^3.
+
+    The quasi-static limit of a slow tilt: water stands level and runs out once it reaches
+    the lowest point of the cavity's mouth (its top layer when upright: the inner edge of
+    the rim, which the water must pass; the rim's top then slopes away outwards). For a
+    straight cylinder of inner radius R and depth H holding water to h, the volume exceeds
+    this exactly when tan(theta) > (H - h) / R (while the water covers the bottom).
+    :func:`held_volume` measures from the lowest rim vertex instead, which on a thick
+    rim is its outer edge, up to a wall's thickness lower.
+
+    Args:
+        geometry: the container's geometry.
+        rotation: (3, 3) container rotation (world = R @ local + t).
+        points: :func:`cavity_points` of the geometry, if already computed.
+
+    Returns:
+        The volume, m^3.
+    """
+    cav = geometry.cavity
+    pts = cavity_points(geometry) if points is None else points
+    up = np.asarray(rotation)[2]
+    height = pts @ up
+    top = cav.origin[2] + cav.voxel * (np.flatnonzero(cav.mask.any(axis=(0, 1)))[-1])
+    mouth = height[pts[:, 2] >= top - 0.5 * cav.voxel]
+    # Voxel centres below the lowest mouth voxel's top (its centre half a voxel up).
+    lip = float(mouth.min()) + 0.5 * cav.voxel * float(np.abs(up).sum())
+    return float(np.count_nonzero(height < lip)) * cav.voxel**3
 
 
 def held_volume(

@@ -19,6 +19,7 @@ from pour_gym.measure import chamfer_distance, container_dimensions
 from pour_gym.objects import build_object
 from pour_gym.reconstruct import ReconstructConfig, Reconstruction, reconstruct
 from pour_gym.scan import PointCloud, ScanConfig, turntable_scan
+from pour_gym.texttable import text_table
 
 MODELS = ("thesis", "offset")
 
@@ -144,3 +145,79 @@ def _plain(value):
     if isinstance(value, np.generic):
         return value.item()
     return value
+
+
+def reconstruct_text(report: dict) -> str:
+    """A table of the report's dimensions per model (and errors for catalogue objects)."""
+    rows = []
+    for model, m in report["models"].items():
+        err = m.get("errors")
+        row = [
+            model + (" *" if model == report["inner"] else ""),
+            f"{m['height'] * 100:.2f}",
+            f"{m['rim_radius'] * 100:.2f}",
+            f"{m['volume'] * 1e6:.1f}",
+        ]
+        if err:
+            row += [
+                f"{err['height']['rel_error']:.1%}",
+                f"{err['rim_radius']['rel_error']:.1%}",
+                f"{err['volume']['rel_error']:.1%}",
+                f"{m['chamfer_distance'] * 1000:.2f}",
+            ]
+        rows.append(row)
+    header = ["model", "height cm", "radius cm", "volume ml"]
+    if "thesis" in report:
+        t = report["thesis"]
+        rows.append(
+            [
+                "thesis (paper)",
+                f"{t['height']['measured'] * 100:.2f}",
+                f"{t['rim_radius']['measured'] * 100:.2f}",
+                f"{t['volume']['measured'] * 1e6:.1f}",
+                f"{t['height']['rel_error']:.1%}",
+                f"{t['rim_radius']['rel_error']:.1%}",
+                f"{t['volume']['rel_error']:.1%}",
+                "-",
+            ]
+        )
+        header += ["height err", "radius err", "volume err", "chamfer mm"]
+    lines = [
+        f"{report['n_points']} points, {report['seconds']:.1f} s; mesh: {report['mesh']} "
+        f"(report {report['report']}); * = the written model",
+        text_table(rows, header),
+    ]
+    return "\n".join(lines)
+
+
+def reconstruction_table(reports: dict[str, dict]) -> str:
+    """Markdown table of relative errors per object: thesis paper, thesis model, offset."""
+    quantities = ("height", "rim_radius", "volume")
+    header = (
+        "| object | "
+        + " | ".join(
+            f"{q} {src}"
+            for q in ("height", "radius", "volume")
+            for src in ("paper", "thesis", "offset")
+        )
+        + " | chamfer mm (thesis / offset) |"
+    )
+    lines = [header, "|---" + "|---:" * 10 + "|"]
+    sums = np.zeros(9)
+    for name, r in reports.items():
+        cells = []
+        for q in quantities:
+            cells += [
+                r["thesis"][q]["rel_error"],
+                r["models"]["thesis"]["errors"][q]["rel_error"],
+                r["models"]["offset"]["errors"][q]["rel_error"],
+            ]
+        sums += cells
+        chamfer = "{:.2f} / {:.2f}".format(
+            r["models"]["thesis"]["chamfer_distance"] * 1000,
+            r["models"]["offset"]["chamfer_distance"] * 1000,
+        )
+        lines.append(f"| {name} | " + " | ".join(f"{c:.1%}" for c in cells) + f" | {chamfer} |")
+    mean = sums / len(reports)
+    lines.append("| **mean** | " + " | ".join(f"**{c:.1%}**" for c in mean) + " | |")
+    return "\n".join(lines)

@@ -59,10 +59,17 @@ def test_evaluate_and_search_at_tiny_size():
 
     policy = ScriptedPourPolicy()
     small = {"source_particles": 300, "amount_range": (40, 80)}
-    result = evaluate_policy(policy, "PourGym/Pour-v0", ["red_cup"], 1, env_kwargs=small,
-                             reset=policy.reset)  # fmt: skip
+    result = evaluate_policy(policy, "PourGym/Pour-v0", ["red_cup"], 1, env_kwargs=small)
     row = result["rows"][0]
     assert row["object"] == "red_cup" and row["amount_error"] is not None
+    matrix = evaluate_policy(
+        policy, "PourGym/Pour-v0", episodes=1, env_kwargs=small,
+        source_objects=["red_cup", "standard_cup"], target_objects=["broad_cup"],
+    )  # fmt: skip
+    assert [(r["source"], r["target"]) for r in matrix["rows"]] == [
+        ("red_cup", "broad_cup"),
+        ("standard_cup", "broad_cup"),
+    ]
     doc = search("train", generations=1, population=2, episodes=1, env_kwargs=small)
     assert set(doc["best"]) == {name for name, _, _ in PARAMETERS}
     assert doc["best_score"] >= max(h["best"] for h in doc["history"]) - 1e-9

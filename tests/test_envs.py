@@ -1,10 +1,13 @@
 """Every registered environment: API checks, determinism, pickling, bad actions, user meshes.
 
-And the scripted features policy on Pour-v0: at least 80 % success on the train split
-(red cup into red cup) and on the test split (the other thesis objects).
+And the features each observation holds (the same numbers :mod:`pour_gym.features`
+computes), TiltPour-v0's hydrostatic label against tan(theta) = (H - h) / R, and the
+scripted features policy on Pour-v0: at least 80 % success on the train split (red cup
+into red cup) and on the test split (the other thesis objects).
 """
 
 import pickle
+import warnings
 
 import gymnasium as gym
 import numpy as np
@@ -13,8 +16,10 @@ from gymnasium.utils.env_checker import check_env as gym_check_env
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import pour_gym  # noqa: F401 - registers the environments
+from pour_gym.agents.rollout import rollout
 from pour_gym.agents.scripted import ScriptedPourPolicy
 from pour_gym.envs import ENV_IDS
+from pour_gym.features import fluid_features, relative_distance_height
 from pour_gym.objects import cylinder_cup
 
 # Small fluids keep the checks quick; the defaults are exercised by the policy test.
@@ -36,49 +41,68 @@ def test_ids_are_registered():
 
 
 @pytest.mark.parametrize("env_id", ENV_IDS)
-def test_gymnasium_and_sb3_checks(env_id):
+def test_gymnasium_and_sb3_checks_pass_without_a_warning(env_id):
     env = make(env_id)
-    gym_check_env(env.unwrapped, skip_render_check=True)
-    sb3_check_env(env.unwrapped, warn=True)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # as Gymnasium's own env tests: a warning fails
+        gym_check_env(env.unwrapped, skip_render_check=True)
+        sb3_check_env(env.unwrapped, warn=True)
     env.close()
+
+
+def _plain(value):
+    """An info value as comparable plain data (arrays as lists)."""
+    if isinstance(value, dict):
+        return {k: _plain(v) for k, v in value.items()}
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    return value
 
 
 @pytest.mark.parametrize("env_id", ENV_IDS)
 @pytest.mark.parametrize("obs_mode", ["features", "state"])
-def test_same_seed_same_rollout(env_id, obs_mode):
-    def rollout():
+def test_same_seed_same_rollout_and_info(env_id, obs_mode):
+    def run():
         env = make(env_id, obs_mode=obs_mode)
-        obs, _ = env.reset(seed=7)
+        obs, info = env.reset(seed=7)
         env.action_space.seed(3)
-        out = [obs]
+        out, infos = [obs], [_plain(info)]
         for _ in range(3):
             obs, reward, terminated, truncated, info = env.step(env.action_space.sample())
             out += [obs, np.array([reward])]
+            infos.append(_plain(info))
             assert env.observation_space.contains(obs)
             terms = sum(v for k, v in info.items() if k.startswith("reward_"))
             assert terms == pytest.approx(reward)
             if terminated or truncated:
-                obs, _ = env.reset()
+                obs, info = env.reset()
                 out.append(obs)
+                infos.append(_plain(info))
         env.close()
-        return np.concatenate([np.ravel(x) for x in out])
+        return np.concatenate([np.ravel(x) for x in out]), infos
 
-    assert np.array_equal(rollout(), rollout())
+    (obs_a, info_a), (obs_b, info_b) = run(), run()
+    assert np.array_equal(obs_a, obs_b)
+    assert info_a == info_b
 
 
 @pytest.mark.parametrize("env_id", ENV_IDS)
-def test_pickle_bad_actions_and_close_twice(env_id):
+def test_pickles_as_its_arguments_and_refuses_bad_actions(env_id):
     env = make(env_id)
+    copy = pickle.loads(pickle.dumps(env))  # before a reset: no world yet
     env.reset(seed=0)
-    copy = pickle.loads(pickle.dumps(env))
+    later = pickle.loads(pickle.dumps(env))  # after: the world is not pickled, rebuilt
     obs_a, _ = env.reset(seed=1)
     obs_b, _ = copy.reset(seed=1)
-    assert np.array_equal(obs_a, obs_b)
+    obs_c, _ = later.reset(seed=1)
+    assert np.array_equal(obs_a, obs_b) and np.array_equal(obs_a, obs_c)
     shape = env.action_space.shape
     with pytest.raises(ValueError, match="NaN"):
         env.step(np.full(shape, np.nan))
     with pytest.raises(ValueError, match=r"\[-1, 1\]"):
         env.step(np.full(shape, 3.0))
+    with pytest.raises(ValueError, match=rf"shape \({shape[0]},\)"):
+        env.step(np.zeros(shape[0] + 2))
     with pytest.raises(ValueError, match="unknown reset options"):
         env.reset(options={"colour": "red"})
     frame = make(env_id, render_mode="rgb_array")
@@ -87,8 +111,60 @@ def test_pickle_bad_actions_and_close_twice(env_id):
     assert image.ndim == 3 and image.shape[2] == 3 and image.dtype == np.uint8
     frame.close()
     env.close()
-    env.close()
+    env.close()  # twice is fine
+    with pytest.raises(RuntimeError, match="closed"):
+        env.step(np.zeros(shape))
+    fresh = make(env_id).unwrapped  # Gymnasium's OrderEnforcing wrapper says it first
+    with pytest.raises(RuntimeError, match="reset"):
+        fresh.step(np.zeros(shape))
+    fresh.close()
     copy.close()
+    later.close()
+
+
+def test_observations_hold_the_library_features():
+    """The features in each observation are the numbers pour_gym.features computes."""
+    pour = make("PourGym/Pour-v0")
+    obs, info = pour.reset(seed=3)
+    for _ in range(12):  # tilt until some fluid stands above the lip
+        obs, *_ = pour.step(np.array([0.0, 0.0, 0.0, 1.0]))
+    u = pour.unwrapped
+    s, t = u.source, u.target
+    where = u.world.census().where
+    x = u.world.particles
+    f3, f4 = fluid_features(
+        s.asset.geometry, x, s.rotation, s.translation, u.world.particle_volume,
+        inside=where == s.index,
+    )  # fmt: skip
+    names = list(u.obs_names)
+    assert obs[names.index("f3_source")] == pytest.approx(f3, rel=1e-5)
+    assert obs[names.index("f4_source")] == pytest.approx(f4, rel=1e-5)
+    assert f4 > 0.0
+    flight = where < 0
+    if flight.any():
+        f1, _ = relative_distance_height(t.asset.geometry, x[flight], t.rotation, t.translation)
+        assert obs[names.index("stream_f1")] == pytest.approx(f1.mean(), rel=1e-5)
+    pour.close()
+
+    drop = make("PourGym/ParticleDrop-v0")
+    obs, info = drop.reset(seed=0, options={"fill": 0.3})
+    d = drop.unwrapped
+    c = d.container
+    g = c.asset.geometry
+    f1, f2 = relative_distance_height(g, c.to_world(d.spawn)[None], c.rotation, c.translation)
+    assert obs == pytest.approx([f1[0], f2[0], 0.3], rel=1e-5)
+    drop.close()
+
+    tilt = make("PourGym/TiltPour-v0")
+    obs, info = tilt.reset(seed=0, options={"fill": 0.7, "tilt_deg": 50.0})
+    u = tilt.unwrapped
+    rest = u.rest @ u.rotation.T
+    _, f4 = fluid_features(
+        u.episode_asset.geometry, rest, u.rotation, np.zeros(3), u.fluid_config.particle_volume,
+        inside=np.ones(len(rest), dtype=bool),
+    )  # fmt: skip
+    assert obs[0] == pytest.approx(f4, rel=1e-5) and f4 > 0.0
+    tilt.close()
 
 
 def test_unknown_containers_and_arguments_are_refused():
@@ -98,6 +174,10 @@ def test_unknown_containers_and_arguments_are_refused():
         gym.make("PourGym/TiltPour-v0", obs_mode="pixels")
     with pytest.raises(ValueError, match="fluid"):
         gym.make("PourGym/ParticleDrop-v0", fluid="sph")
+    with pytest.raises(ValueError, match="num_threads"):
+        gym.make("PourGym/Pour-v0", num_threads=0)
+    with pytest.raises(ValueError, match="weights"):
+        gym.make("PourGym/Pour-v0", spill_weight=float("nan"))
 
 
 def test_a_user_mesh_works_as_a_container(tmp_path):
@@ -117,30 +197,29 @@ def test_a_user_mesh_works_as_a_container(tmp_path):
     drop.close()
 
 
-def test_tilt_labels_follow_the_onset_angle():
-    """The hydrostatic label flips at tan(theta) = (H - h) / R for the cylinder of the test."""
-    env = gym.make("PourGym/TiltPour-v0", objects="standard_cup")
-    labels = []
-    for tilt in (5.0, 30.0, 60.0, 85.0):
-        env.reset(seed=0, options={"fill": 0.5, "tilt_deg": tilt})
-        _, _, _, _, info = env.step(np.array([0.0]))
-        labels.append(info["label"])
-    assert labels == sorted(labels) and labels[0] is False and labels[-1] is True
+@pytest.mark.parametrize("radius", [0.025, 0.03, 0.036])
+def test_tilt_label_flips_at_the_analytic_onset(radius, tmp_path):
+    """The hydrostatic label turns to "pours" within 1 degree of tan(theta) = (H - h) / R
+    on straight cylinders (the water covering the bottom: fills of half and more)."""
+    height, base = 0.1, 0.006
+    path = tmp_path / "cylinder.stl"
+    cylinder_cup(radius, height, 0.004, base).export(path)
+    env = gym.make("PourGym/TiltPour-v0", objects=[str(path)])
+    depth = height - base
+    for fill in (0.5, 0.6, 0.7, 0.8):
+        onset = np.degrees(np.arctan(depth * (1.0 - fill) / radius))
+        labels = []
+        for offset in (-1.0, 1.0):
+            env.reset(seed=0, options={"fill": fill, "tilt_deg": onset + offset})
+            labels.append(env.step(np.array([0.0]))[4]["label"])
+        assert labels == [False, True], (radius, fill, onset)
     env.close()
 
 
 def run_scripted(objects, episodes, seed=0):
     env = gym.make("PourGym/Pour-v0", objects=objects)
     policy = ScriptedPourPolicy()
-    results = []
-    for ep in range(episodes):
-        obs, info = env.reset(seed=seed + ep)
-        policy.reset()
-        done = False
-        while not done:
-            obs, _, terminated, truncated, info = env.step(policy(obs))
-            done = terminated or truncated
-        results.append(info)
+    results = [rollout(env, policy, seed=seed + ep).info for ep in range(episodes)]
     env.close()
     return results
 

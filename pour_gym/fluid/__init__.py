@@ -1,14 +1,41 @@
 """Particle fluid: position-based fluids in numba, colliding with posed containers.
 
-The numba kernels run on OpenMP threads (the fastest layer here: 2.5x the workqueue
-layer at 2k particles). GNU OpenMP does not survive ``fork()``: a process that has run
-them and then forks (``AsyncVectorEnv`` with its default context, ``multiprocessing``
-with ``fork``) gets children that abort. A warning names the fix when that happens: start
-subprocesses with ``spawn`` or ``forkserver``.
+The fluid kernel runs on one thread (compiled without any threading layer) or on several
+(numba's parallel loops; see :func:`pour_gym.fluid.pbf.default_threads`). Of numba's
+threading layers only TBB and the slow workqueue survive ``fork()``: GNU OpenMP aborts
+the children of a process that used it, which is what ``AsyncVectorEnv`` and
+``multiprocessing`` do on Linux by default. The ``tbb`` wheel (a dependency on Linux x86_64)
+brings a TBB new enough for numba, but the system's older ``libtbb.so.12`` would be found
+first; it is loaded here, before any parallel kernel runs, and numba is told to use it.
+Without it the threads run on OpenMP, and a warning names the fix when such a process
+forks.
 """
 
+import ctypes
 import os
 import sys
+from pathlib import Path
+
+
+def _use_wheel_tbb() -> str | None:
+    """Load the tbb wheel's library and select numba's TBB layer; the library's path."""
+    import numba
+
+    if os.environ.get("NUMBA_THREADING_LAYER") or numba.config.THREADING_LAYER != "default":
+        return None  # the user chose a layer
+    for prefix in dict.fromkeys((sys.prefix, sys.base_prefix)):
+        library = Path(prefix) / "lib" / "libtbb.so.12"
+        if library.is_file():
+            try:
+                ctypes.CDLL(str(library), mode=ctypes.RTLD_GLOBAL)
+            except OSError:
+                return None
+            numba.config.THREADING_LAYER = "tbb"
+            return str(library)
+    return None
+
+
+TBB_LIBRARY = _use_wheel_tbb() if sys.platform.startswith("linux") else None
 
 
 def _warn_before_fork() -> None:
@@ -21,15 +48,21 @@ def _warn_before_fork() -> None:
     if layer == "omp":
         sys.stderr.write(
             "pour-gym: this process ran the fluid on OpenMP threads and is forking; the "
-            "child will abort. Start subprocesses with 'spawn' or 'forkserver', e.g. "
-            "AsyncVectorEnv(fns, context='spawn') or SubprocVecEnv(fns, "
-            "start_method='forkserver').\n"
+            "child will abort. Install the tbb wheel (pip install tbb), give the fluid one "
+            "thread (num_threads=1), or start subprocesses with 'spawn' or 'forkserver'.\n"
         )
 
 
 os.register_at_fork(before=_warn_before_fork)
 
-from pour_gym.fluid.pbf import PBFConfig, PBFluid  # noqa: E402 - after the fork hook
+from pour_gym.fluid.pbf import PBFConfig, PBFluid, default_threads  # noqa: E402
 from pour_gym.fluid.sdf import SignedDistanceField, build_sdf  # noqa: E402
 
-__all__ = ["PBFConfig", "PBFluid", "SignedDistanceField", "build_sdf"]
+__all__ = [
+    "TBB_LIBRARY",
+    "PBFConfig",
+    "PBFluid",
+    "SignedDistanceField",
+    "build_sdf",
+    "default_threads",
+]

@@ -36,12 +36,18 @@ class SignedDistanceField:
     origin: np.ndarray
     spacing: float
 
+    @property
+    def flat(self) -> np.ndarray:
+        """The values as one contiguous float64 run (x slowest, z fastest)."""
+        return np.ascontiguousarray(self.values, dtype=np.float64).reshape(-1)
+
     def sample(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Signed distance (N,) and its gradient (N, 3) at mesh-frame points."""
         p = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
         dist = np.empty(len(p))
         grad = np.empty((len(p), 3))
-        _sample_many(self.values, self.origin, self.spacing, p, dist, grad)
+        nx, ny, nz = self.values.shape
+        _sample_many(self.flat, nx, ny, nz, self.origin, self.spacing, p, dist, grad)
         return dist, grad
 
 
@@ -53,6 +59,14 @@ def _mesh_key(mesh: trimesh.Trimesh, *params: float) -> str:
     return h.hexdigest()[:16]
 
 
+# How far from every surface a point must be to count as open space for the flood fill
+# that decides which side of an open or multi-body mesh the fluid is on, m: half the wall a
+# bare surface is given plus a particle's radius (5 mm particles), so the flood passes
+# through exactly the gaps a particle could pass through.
+OPEN_SPACE = 4e-3
+SIGN_VERSION = 3  # bumped when the way fields are signed changes (cached fields go stale)
+
+
 def build_sdf(
     mesh: trimesh.Trimesh,
     spacing: float = 1e-3,
@@ -62,10 +76,15 @@ def build_sdf(
 ) -> SignedDistanceField:
     """Compute (or load from the cache) the signed distance field of a container mesh.
 
-    A watertight mesh's material is its inside. A scanned mesh that is not watertight
-    (small holes, a wall thinner than the grid) takes its sign from ray parity, and every
-    surface is additionally thickened to a wall of ``min_wall``, so that the fluid meets a
-    wall wherever the mesh has a surface.
+    A single watertight body's material is its inside (the sign from ray parity). Any
+    other mesh (a scan with holes, a surface with no thickness, a handle pushed into a
+    body as a second piece whose open ends are buried in the wall) cannot be signed by
+    parity: a point inside two overlapping pieces crosses an even number of surfaces. Its
+    sign comes from where fluid can be instead: the open space reachable from far outside
+    through gaps wider than a particle (a flood fill over points at least
+    :data:`OPEN_SPACE` from every surface) and the points that see that space before a
+    surface; everything else is material. Every surface of such a mesh is also thickened
+    to a wall of ``min_wall``, so that the fluid meets a wall wherever the mesh has one.
 
     Args:
         mesh: the container, in m.
@@ -73,7 +92,8 @@ def build_sdf(
             resolves the wall).
         margin: the grid extends this far beyond the mesh's bounds, in m.
         cache_dir: folder for ``sdf_<hash>.npz`` files; ``None`` disables caching.
-        min_wall: wall thickness given to the surfaces of a mesh that is not watertight, m.
+        min_wall: wall thickness given to the surfaces of a mesh that is not a single
+            watertight body, m.
 
     Returns:
         The field.
@@ -83,10 +103,10 @@ def build_sdf(
     """
     if len(mesh.faces) == 0:
         raise InputError("the mesh has no faces; a container needs a surface")
-    closed = bool(mesh.is_watertight)
+    solid = bool(mesh.is_watertight) and mesh.body_count == 1
     path = None
     if cache_dir is not None:
-        key = _mesh_key(mesh, spacing, margin, 0.0 if closed else min_wall)
+        key = _mesh_key(mesh, spacing, margin, 0.0 if solid else min_wall, SIGN_VERSION)
         path = Path(cache_dir) / f"sdf_{key}.npz"
         if path.is_file():
             data = np.load(path)
@@ -102,17 +122,46 @@ def build_sdf(
         o3d.core.Tensor(np.asarray(mesh.vertices, dtype=np.float32)),
         o3d.core.Tensor(np.asarray(mesh.faces, dtype=np.uint32)),
     )
-    # open3d's sign is negative inside the closed surface, which here is the material.
     query = o3d.core.Tensor(grid.astype(np.float32))
-    values = scene.compute_signed_distance(query, nsamples=3).numpy().astype(np.float64)
-    if not closed:
-        shell = scene.compute_distance(query).numpy().astype(np.float64) - 0.5 * min_wall
-        values = np.minimum(values, shell)
-    field = SignedDistanceField(values.reshape(shape), origin, float(spacing))
+    if solid:
+        # open3d's sign is negative inside the closed surface, which here is the material.
+        values = scene.compute_signed_distance(query, nsamples=3).numpy().astype(np.float64)
+        values = values.reshape(shape)
+    else:
+        distance = scene.compute_distance(query).numpy().astype(np.float64).reshape(shape)
+        fluid_side = _fluid_side(distance, spacing)
+        values = np.where(fluid_side, distance, -distance) - 0.5 * min_wall
+    field = SignedDistanceField(values, origin, float(spacing))
     if path is not None:
         path.parent.mkdir(parents=True, exist_ok=True)
         np.savez_compressed(path, values=field.values, origin=origin, spacing=spacing)
     return field
+
+
+def _fluid_side(distance: np.ndarray, spacing: float) -> np.ndarray:
+    """Which grid nodes lie on the fluid's side of the surfaces (see :func:`build_sdf`).
+
+    Open space is flooded from the grid's faces over nodes at least :data:`OPEN_SPACE`
+    from every surface. A node at distance d from the surfaces and e from that open space
+    is on its side when e + d is about ``OPEN_SPACE`` (the open space lies straight
+    beyond it, no surface between); behind a surface e + d is larger by twice the depth.
+
+    Args:
+        distance: (nx, ny, nz) unsigned distance to the nearest surface, m.
+        spacing: node spacing, m.
+
+    Returns:
+        A boolean grid.
+    """
+    from scipy import ndimage
+
+    deep = distance > OPEN_SPACE
+    labels, _ = ndimage.label(deep)
+    faces = (labels[0], labels[-1], labels[:, 0], labels[:, -1], labels[:, :, 0], labels[:, :, -1])
+    outside = np.unique(np.concatenate([f.ravel() for f in faces]))
+    open_space = np.isin(labels, outside[outside > 0])
+    reach = ndimage.distance_transform_edt(~open_space, sampling=spacing)
+    return open_space | (reach + distance <= OPEN_SPACE + spacing)
 
 
 @nb.njit(cache=True, inline="always")
@@ -127,31 +176,38 @@ def _clamp_axis(x, origin, spacing, n):
     return u, 0.0
 
 
-@nb.njit(cache=True)
-def sample_sdf(values, origin, spacing, p, grad):
-    """Trilinear signed distance at mesh-frame point ``p``; writes its gradient to ``grad``.
+@nb.njit(cache=True, fastmath=True)
+def trilinear(values, offset, nx, ny, nz, ox, oy, oz, spacing, x, y, z):
+    """Trilinear signed distance and its unit gradient at a point of a field's frame.
 
-    Outside the grid the distance to the grid's box is added to the nearest node's value,
-    which keeps far particles far.
+    The field is stored flat (``values[offset:]``, x slowest, z fastest), so that the
+    fields of several containers can travel to compiled code as one array. Outside the
+    grid the distance to the grid's box is added to the nearest node's value, which keeps
+    far particles far.
+
+    Returns:
+        ``(d, gx, gy, gz)``: distance in m and the gradient's direction (the outward
+        normal of the nearest surface).
     """
-    # Scalars rather than small arrays: this runs for every particle in every substep.
     extra = 0.0
-    u, e = _clamp_axis(p[0], origin[0], spacing, values.shape[0])
+    u, e = _clamp_axis(x, ox, spacing, nx)
     extra += e
-    v, e = _clamp_axis(p[1], origin[1], spacing, values.shape[1])
+    v, e = _clamp_axis(y, oy, spacing, ny)
     extra += e
-    w, e = _clamp_axis(p[2], origin[2], spacing, values.shape[2])
+    w, e = _clamp_axis(z, oz, spacing, nz)
     extra += e
     i, j, m = int(u), int(v), int(w)
     fx, fy, fz = u - i, v - j, w - m
-    c000 = values[i, j, m]
-    c100 = values[i + 1, j, m]
-    c010 = values[i, j + 1, m]
-    c110 = values[i + 1, j + 1, m]
-    c001 = values[i, j, m + 1]
-    c101 = values[i + 1, j, m + 1]
-    c011 = values[i, j + 1, m + 1]
-    c111 = values[i + 1, j + 1, m + 1]
+    base = offset + (i * ny + j) * nz + m
+    sx, sy = ny * nz, nz
+    c000 = values[base]
+    c100 = values[base + sx]
+    c010 = values[base + sy]
+    c110 = values[base + sx + sy]
+    c001 = values[base + 1]
+    c101 = values[base + sx + 1]
+    c011 = values[base + sy + 1]
+    c111 = values[base + sx + sy + 1]
     c00 = c000 * (1 - fx) + c100 * fx
     c10 = c010 * (1 - fx) + c110 * fx
     c01 = c001 * (1 - fx) + c101 * fx
@@ -168,13 +224,38 @@ def sample_sdf(values, origin, spacing, p, grad):
     gz = c1 - c0
     norm = np.sqrt(gx * gx + gy * gy + gz * gz)
     if norm > 1e-12:
-        grad[0], grad[1], grad[2] = gx / norm, gy / norm, gz / norm
-    else:
-        grad[0], grad[1], grad[2] = 0.0, 0.0, 1.0
-    return d + extra
+        return d + extra, gx / norm, gy / norm, gz / norm
+    return d + extra, 0.0, 0.0, 1.0
+
+
+@nb.njit(cache=True, fastmath=True)
+def trilinear_distance(values, offset, nx, ny, nz, ox, oy, oz, spacing, x, y, z):
+    """:func:`trilinear`'s distance alone (most particles are far from every wall)."""
+    extra = 0.0
+    u, e = _clamp_axis(x, ox, spacing, nx)
+    extra += e
+    v, e = _clamp_axis(y, oy, spacing, ny)
+    extra += e
+    w, e = _clamp_axis(z, oz, spacing, nz)
+    extra += e
+    i, j, m = int(u), int(v), int(w)
+    fx, fy, fz = u - i, v - j, w - m
+    base = offset + (i * ny + j) * nz + m
+    sx, sy = ny * nz, nz
+    c00 = values[base] * (1 - fx) + values[base + sx] * fx
+    c10 = values[base + sy] * (1 - fx) + values[base + sx + sy] * fx
+    c01 = values[base + 1] * (1 - fx) + values[base + sx + 1] * fx
+    c11 = values[base + sy + 1] * (1 - fx) + values[base + sx + sy + 1] * fx
+    c0 = c00 * (1 - fy) + c10 * fy
+    c1 = c01 * (1 - fy) + c11 * fy
+    return c0 * (1 - fz) + c1 * fz + extra
 
 
 @nb.njit(cache=True)
-def _sample_many(values, origin, spacing, points, dist, grad):
+def _sample_many(values, nx, ny, nz, origin, spacing, points, dist, grad):
+    ox, oy, oz = origin[0], origin[1], origin[2]
     for i in range(points.shape[0]):
-        dist[i] = sample_sdf(values, origin, spacing, points[i], grad[i])
+        d, gx, gy, gz = trilinear(
+            values, 0, nx, ny, nz, ox, oy, oz, spacing, points[i, 0], points[i, 1], points[i, 2]
+        )
+        dist[i], grad[i, 0], grad[i, 1], grad[i, 2] = d, gx, gy, gz

@@ -15,9 +15,6 @@ material (:class:`~pour_gym.errors.SimulationError` otherwise) and that no posit
 
 from __future__ import annotations
 
-import os
-import sys
-from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -35,6 +32,7 @@ from pour_gym.fluid.sdf import SignedDistanceField, build_sdf
 from pour_gym.sim.camera import Camera, render
 from pour_gym.sim.census import Census, take_census
 from pour_gym.sim.spawn import block, cavity_lattice, fill_lattice
+from pour_gym.stdio import redirect_stdout_fd
 
 FLUIDS = ("pbf", "bullet")
 TABLE_COLOR = (0.72, 0.60, 0.45, 1.0)
@@ -45,25 +43,6 @@ SDF_SPACING = 1e-3
 SDF_MARGIN = 0.012
 # Particles are drawn larger than their collision radius, so that they merge into water.
 DRAWN_RADIUS = 0.8
-
-
-@contextmanager
-def quiet_c_stdout():
-    """Silence what C code prints on file descriptor 1 (pybullet's connection banner).
-
-    The command line prints exactly one JSON document on stdout; pybullet writes
-    ``argv[0]=`` there on every connection.
-    """
-    sys.stdout.flush()
-    saved = os.dup(1)
-    devnull = os.open(os.devnull, os.O_WRONLY)
-    try:
-        os.dup2(devnull, 1)
-        yield
-    finally:
-        os.dup2(saved, 1)
-        os.close(saved)
-        os.close(devnull)
 
 
 def as_rotation(rotation) -> np.ndarray:
@@ -175,6 +154,8 @@ class World:
         table: put a table (a plane at z = 0) under everything.
         sdf_cache: folder for the containers' fields and convex decompositions (default:
             the user cache).
+        num_threads: threads of the PBF fluid (``None``: one per core this process may
+            use, one in a worker process; see :func:`pour_gym.fluid.pbf.default_threads`).
     """
 
     def __init__(
@@ -183,13 +164,14 @@ class World:
         config: PBFConfig | None = None,
         table: bool = True,
         sdf_cache: str | Path | None = None,
+        num_threads: int | None = None,
     ):
         if fluid not in FLUIDS:
             raise InputError(f"unknown fluid {fluid!r}; use one of {', '.join(FLUIDS)}")
         self.fluid_kind = fluid
         self.config = config or PBFConfig()
         self.sdf_cache = Path(sdf_cache) if sdf_cache is not None else cache_dir("sdf")
-        with quiet_c_stdout():
+        with redirect_stdout_fd():
             self.client = BulletClient(connection_mode=pybullet.DIRECT)
         self.client.setGravity(0.0, 0.0, -9.81)
         self.containers: list[Container] = []
@@ -207,7 +189,7 @@ class World:
         floor = 0.0 if table else None
         self.fluid: PBFluid | BulletFluid
         if fluid == "pbf":
-            self.fluid = PBFluid(empty, self.config, floor=floor)
+            self.fluid = PBFluid(empty, self.config, floor=floor, num_threads=num_threads)
         else:
             self.fluid = BulletFluid(self.client, empty, self.config)
         self._closed = False
@@ -240,7 +222,7 @@ class World:
         rot, pos = as_rotation(rotation), np.asarray(position, dtype=np.float64)
         convex = None
         if isinstance(self.fluid, BulletFluid):
-            with quiet_c_stdout():  # V-HACD reports its progress on stdout
+            with redirect_stdout_fd():  # V-HACD reports its progress on stdout
                 convex = convex_parts(self.client, asset.mesh, self.sdf_cache)
         body = mesh_body(
             self.client,
@@ -346,9 +328,13 @@ class World:
     def step(self, dt: float) -> int:
         """Advance by ``dt`` seconds; returns the fluid substeps taken.
 
+        Containers move smoothly to the poses last given to :meth:`set_pose`; the fluid
+        takes as many substeps as the motion needs, and puts back particles that tunnelled
+        into a wall (:attr:`corrections`). Nothing here checks the walls: that is
+        :meth:`check_walls`, a validation for tests and ``pour-gym soak``.
+
         Raises:
             FloatingPointError: the fluid diverged.
-            SimulationError: a particle ended inside a container's material.
         """
         self._check_open()
         n_sub = self.fluid.step(dt)
@@ -356,11 +342,15 @@ class World:
             for c in self.containers:
                 quat = Rotation.from_matrix(c.rotation).as_quat().tolist()
                 self.client.resetBasePositionAndOrientation(c.body, c.translation.tolist(), quat)
-        self.check_walls()
         return n_sub
 
+    @property
+    def corrections(self) -> int:
+        """Particles put back out of a wall they had tunnelled into during the last step."""
+        return int(getattr(self.fluid, "corrections", 0))
+
     def check_walls(self) -> None:
-        """Raise if a particle's centre lies in a container's material (done every step).
+        """Raise if a particle's centre lies in a container's material (a validation).
 
         Raises:
             SimulationError: naming the particle, the container and the depth.

@@ -1,0 +1,68 @@
+"""Pour-v0 in several processes, as RL libraries run it: SB3's SubprocVecEnv (spawn and
+forkserver workers) and Gymnasium's async vector env with its default start method, after
+the parent process has stepped an environment of its own."""
+
+import functools
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from stable_baselines3.common.vec_env import SubprocVecEnv
+
+import pour_gym  # noqa: F401 - registers the environments
+
+SMALL = {"source_particles": 150, "amount_range": (20, 40), "objects": "red_cup"}
+
+
+def _make():
+    import gymnasium as gym
+
+    import pour_gym  # noqa: F401 - the worker registers the environments too
+
+    return gym.make("PourGym/Pour-v0", **SMALL)
+
+
+@pytest.mark.parametrize("start_method", ["spawn", "forkserver"])
+def test_subprocess_workers_step_pour(start_method):
+    venv = SubprocVecEnv([_make, _make], start_method=start_method)
+    venv.seed(0)
+    obs = venv.reset()
+    assert obs.shape == (2, 16)
+    for _ in range(5):
+        obs, rewards, dones, infos = venv.step(np.zeros((2, 4), dtype=np.float32))
+    assert np.isfinite(obs).all() and len(infos) == 2
+    # A worker process runs its fluid on one thread.
+    assert venv.get_attr("num_threads") == [None, None]
+    threads = venv.env_method("get_wrapper_attr", "world")
+    assert [w.fluid.num_threads for w in threads] == [1, 1]
+    venv.close()
+
+
+def test_async_make_vec_after_the_parent_stepped(tmp_path):
+    # In a fresh interpreter: the parent steps an env on its default threads, then
+    # Gymnasium forks (its default start method on Linux) two workers.
+    script = tmp_path / "run.py"
+    script.write_text(
+        "import gymnasium as gym, numpy as np, pour_gym\n"
+        f"kw = {SMALL!r}\n"
+        "env = gym.make('PourGym/Pour-v0', **kw)\n"
+        "env.reset(seed=0)\n"
+        "for _ in range(3): env.step(env.action_space.sample())\n"
+        "venv = gym.make_vec('PourGym/Pour-v0', num_envs=2, vectorization_mode='async', **kw)\n"
+        "venv.reset(seed=0)\n"
+        "for _ in range(5): venv.step(venv.action_space.sample())\n"
+        "venv.close(); print('ok')\n"
+    )
+    proc = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0 and proc.stdout.strip().endswith("ok"), proc.stderr[-2000:]
+    assert "abort" not in proc.stderr.lower()
+
+
+def test_fluid_threads_default_to_one_in_a_worker():
+    from multiprocessing import get_context
+
+    from pour_gym.fluid.pbf import default_threads
+
+    with get_context("spawn").Pool(1) as pool:
+        assert pool.apply(functools.partial(default_threads)) == 1
