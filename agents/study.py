@@ -3,9 +3,11 @@
 The same agent is trained on the red cup with the warped features or with raw state and
 evaluated on containers it never saw.
 
-:func:`study_report` gathers the runs of ``docs/generalisation/run.sh`` (``train.py``
-run directories, each with ``config.json`` and ``eval.json``) into one markdown report
-with a table and a bar chart per environment.
+:func:`study_report` gathers ``train.py`` run directories (each with ``config.json`` and
+``eval.json``) into one markdown report with a table and a bar chart per environment. For
+Pour-v0 it also evaluates every run on the matrix of sources and targets (the nine thesis
+objects, each as both; cached as ``matrix.json`` in the run directory) and draws the
+matrices as heat maps.
 """
 
 from __future__ import annotations
@@ -13,20 +15,38 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
+
 from pour_gym.errors import InputError
 
+POUR = "PourGym/Pour-v0"
 
-def _load_runs(root: Path) -> dict[str, dict[str, dict]]:
+
+def _load_runs(roots: list[Path]) -> dict[str, dict[str, dict]]:
     runs: dict[str, dict[str, dict]] = {}
-    for eval_path in sorted(root.glob("*/eval.json")):
-        config = json.loads((eval_path.parent / "config.json").read_text())
-        runs.setdefault(config["env"], {})[config["obs_mode"]] = {
-            "config": config,
-            "eval": json.loads(eval_path.read_text()),
-        }
+    for root in roots:
+        for eval_path in sorted(root.glob("*/eval.json")):
+            config = json.loads((eval_path.parent / "config.json").read_text())
+            runs.setdefault(config["env"], {})[config["obs_mode"]] = {
+                "config": config,
+                "eval": json.loads(eval_path.read_text()),
+                "dir": eval_path.parent,
+            }
     if not runs:
-        raise InputError(f"no runs under {root} (run docs/generalisation/run.sh first)")
+        raise InputError(
+            f"no runs under {', '.join(map(str, roots))} (train.py run directories with "
+            "eval.json; run docs/generalisation/run.sh first)"
+        )
     return runs
+
+
+def _trained(config: dict) -> str:
+    """How a run was trained, in words."""
+    from pour_gym.assets import expand_containers
+
+    objects = ", ".join(expand_containers(config["objects"]))
+    algo, steps, seed = config["algo"].upper(), config["timesteps"], config["seed"]
+    return f"{algo}, {steps} steps, seed {seed}, on {objects}"
 
 
 def _plot(env: str, modes: dict[str, dict], path: Path) -> Path:
@@ -34,20 +54,21 @@ def _plot(env: str, modes: dict[str, dict], path: Path) -> Path:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    import numpy as np
 
-    names = [r["object"] for r in next(iter(modes.values()))["eval"]["rows"]]
+    rows = next(iter(modes.values()))["eval"]["rows"]
+    names = [r["object"] for r in rows]
+    trained = [r["trained_on"] for r in rows]
     x = np.arange(len(names))
     fig, ax = plt.subplots(figsize=(9, 4))
     width = 0.8 / len(modes)
     for k, (mode, run) in enumerate(sorted(modes.items())):
         values = [r["success"] for r in run["eval"]["rows"]]
         ax.bar(x + (k - (len(modes) - 1) / 2) * width, values, width, label=f"obs_mode={mode}")
-    ax.set_xticks(x, [n + (" *" if n == "red_cup" else "") for n in names], rotation=35,
-                  ha="right", fontsize=8)  # fmt: skip
-    ax.set_ylabel("success rate (correct decisions)")
+    labels = [n + (" *" if t else "") for n, t in zip(names, trained, strict=True)]
+    ax.set_xticks(x, labels, rotation=35, ha="right", fontsize=8)
+    ax.set_ylabel("success rate")
     ax.set_ylim(0, 1.05)
-    ax.set_title(f"{env}: trained on red_cup (*), evaluated on every container")
+    ax.set_title(f"{env}: trained on the containers marked *, evaluated on every container")
     ax.legend(fontsize=8, loc="lower left")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
@@ -55,59 +76,129 @@ def _plot(env: str, modes: dict[str, dict], path: Path) -> Path:
     return path
 
 
-def study_report(runs_dir: str | Path, out: str | Path) -> dict:
-    """Write ``report.md`` and one PNG per environment; returns the numbers.
+def pour_matrix(run_dir: Path, episodes: int = 2, objects: tuple[str, ...] | None = None) -> dict:
+    """Pour-v0 success and amount error of a run's model for every source and target.
+
+    Cached as ``matrix.json`` in the run directory (recomputed when the episodes differ).
+    """
+    from pour_gym.agents.evaluate import evaluate_policy
+    from pour_gym.agents.rollout import sb3_policy
+    from pour_gym.agents.training import load_run
+    from pour_gym.objects import OBJECT_NAMES
+
+    objects = tuple(objects or OBJECT_NAMES)
+    cache = run_dir / "matrix.json"
+    if cache.is_file():
+        doc = json.loads(cache.read_text())
+        if doc.get("episodes") == episodes and tuple(doc.get("objects", ())) == objects:
+            return doc
+    run = load_run(run_dir / "model.zip")
+    result = evaluate_policy(
+        sb3_policy(run),
+        POUR,
+        episodes=episodes,
+        env_kwargs={
+            "obs_mode": run.config.get("obs_mode", "features"),
+            **run.config.get("env_kwargs", {}),
+        },
+        trained_on=run.config.get("objects", "train").split(","),
+        source_objects=objects,
+        target_objects=objects,
+    )
+    doc = {"episodes": episodes, "objects": list(objects), **result}
+    cache.write_text(json.dumps(doc, indent=2) + "\n")
+    return doc
+
+
+def _matrix_plot(matrices: dict[str, dict], path: Path) -> Path:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, len(matrices), figsize=(6.5 * len(matrices), 6), squeeze=False)
+    for ax, (mode, doc) in zip(axes[0], sorted(matrices.items()), strict=True):
+        names = doc["objects"]
+        grid = np.zeros((len(names), len(names)))
+        for r in doc["rows"]:
+            grid[names.index(r["source"]), names.index(r["target"])] = r["success"]
+        im = ax.imshow(grid, vmin=0, vmax=1, cmap="viridis")
+        ax.set_xticks(range(len(names)), names, rotation=60, ha="right", fontsize=7)
+        ax.set_yticks(range(len(names)), names, fontsize=7)
+        ax.set_xlabel("target")
+        ax.set_ylabel("source")
+        ax.set_title(f"obs_mode={mode}: success per pair ({doc['episodes']} episodes)")
+        for i in range(len(names)):
+            for j in range(len(names)):
+                ax.text(j, i, f"{grid[i, j]:.1f}", ha="center", va="center", fontsize=6,
+                        color="white" if grid[i, j] < 0.5 else "black")  # fmt: skip
+    fig.colorbar(im, ax=axes[0].tolist(), shrink=0.7, label="success rate")
+    fig.savefig(path, dpi=110, bbox_inches="tight")
+    plt.close(fig)
+    return path
+
+
+def study_report(
+    runs_dir: str | Path | list[str | Path], out: str | Path, matrix_episodes: int = 2
+) -> dict:
+    """Write ``report.md`` and plots; returns the numbers.
+
+    Args:
+        runs_dir: folder(s) of ``train.py`` run directories (a comma-separated string too).
+        out: folder for the report and its pictures.
+        matrix_episodes: Pour-v0 episodes per (source, target) pair.
 
     Returns:
-        ``{env: {mode: {"trained": success on red_cup, "unseen": mean success on the
-        others, "rows": [...]}}}``.
+        ``{env: {mode: {"trained": success on the training containers, "unseen": mean
+        success on the others, ...}}}``.
     """
-    root, out = Path(runs_dir), Path(out)
+    if isinstance(runs_dir, str | Path):
+        roots = [Path(p) for p in str(runs_dir).split(",")]
+    else:
+        roots = [Path(p) for p in runs_dir]
+    out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    runs = _load_runs(root)
+    runs = _load_runs(roots)
     summary: dict = {}
     lines = [
         "# Generalisation: warped features against raw state",
         "",
-        "PPO agents trained on the red cup alone (the thesis's training set), once with the",
-        "warped high-level features as observations and once with raw state (positions and",
-        "bounding-box sizes, no labels), then evaluated on the nine thesis objects and the",
-        "pybullet mug. Numbers are the fraction of correct decisions over the evaluation",
-        "episodes per container (seeds fixed in `train.py`'s evaluation).",
+        "Agents trained on the containers marked in each table, once with the warped",
+        "high-level features as observations and once with raw state (positions and",
+        "bounding-box sizes, no labels), then evaluated on containers they never saw.",
+        "Success is the fraction of successful episodes per container (seeds fixed in",
+        "`train.py`'s evaluation, never used in training).",
         "",
-        "Reproduce (about 20 minutes on a 2-core machine):",
-        "",
-        "```",
-        "sh docs/generalisation/run.sh",
-        "```",
+        "Reproduce: `sh docs/generalisation/run.sh` (the one-step environments) and the",
+        "headline Pour-v0 runs in the README.",
         "",
     ]
     for env, modes in sorted(runs.items()):
         summary[env] = {}
-        cfg = next(iter(modes.values()))["config"]
-        lines += [
-            f"## {env}",
-            "",
-            f"{cfg['algo'].upper()}, {cfg['timesteps']} steps, seed {cfg['seed']}, "
-            f"{next(iter(modes.values()))['eval']['episodes']} evaluation episodes per "
-            "container.",
-            "",
-        ]
         ordered = sorted(modes)
-        lines.append("| container | " + " | ".join(ordered) + " |")
-        lines.append("|---|" + "---:|" * len(ordered))
-        rows = {m: {r["object"]: r for r in modes[m]["eval"]["rows"]} for m in ordered}
-        names = list(rows[ordered[0]])
-        for name in names:
-            cells = [f"{rows[m][name]['success']:.2f}" for m in ordered]
-            lines.append(f"| {name}{' (trained)' if name == 'red_cup' else ''} | "
-                         + " | ".join(cells) + " |")  # fmt: skip
+        lines += [f"## {env}", ""]
         for m in ordered:
-            unseen = [r["success"] for n, r in rows[m].items() if not r["trained_on"]]
+            cfg = modes[m]["config"]
+            lines.append(
+                f"- `{m}`: {_trained(cfg)}; {modes[m]['eval']['episodes']} evaluation "
+                "episodes per container"
+            )
+        lines += [
+            "",
+            "| container | " + " | ".join(ordered) + " |",
+            "|---|" + "---:|" * len(ordered),
+        ]
+        rows = {m: {r["object"]: r for r in modes[m]["eval"]["rows"]} for m in ordered}
+        for name in rows[ordered[0]]:
+            cells = [f"{rows[m][name]['success']:.2f}" if name in rows[m] else "" for m in ordered]
+            mark = " (trained)" if rows[ordered[0]][name]["trained_on"] else ""
+            lines.append(f"| {name}{mark} | " + " | ".join(cells) + " |")
+        for m in ordered:
+            unseen = [r["success"] for r in rows[m].values() if not r["trained_on"]]
             trained = [r["success"] for r in rows[m].values() if r["trained_on"]]
             summary[env][m] = {
-                "trained": sum(trained) / max(len(trained), 1),
-                "unseen": sum(unseen) / max(len(unseen), 1),
+                "trained": float(np.mean(trained)) if trained else None,
+                "unseen": float(np.mean(unseen)) if unseen else None,
             }
         lines.append(
             "| mean over unseen | "
@@ -116,6 +207,35 @@ def study_report(runs_dir: str | Path, out: str | Path) -> dict:
         )
         png = _plot(env, modes, out / f"{env.split('/')[-1]}.png")
         lines += ["", f"![{env}]({png.name})", ""]
+        if env == POUR:
+            matrices = {m: pour_matrix(modes[m]["dir"], matrix_episodes) for m in ordered}
+            heat = _matrix_plot(matrices, out / "Pour-v0-matrix.png")
+            lines += [
+                "### Every source into every target",
+                "",
+                f"Each of the nine thesis objects as the source and as the target, "
+                f"{matrix_episodes} episodes per pair.",
+                "",
+                "| obs_mode | success over all pairs | success, source and target both unseen "
+                "| mean amount error (particles) | mean spilled |",
+                "|---|---:|---:|---:|---:|",
+            ]
+            for m in ordered:
+                doc = matrices[m]
+                both = [r["success"] for r in doc["rows"] if not r["trained_on"]
+                        and r["source"] != "red_cup" and r["target"] != "red_cup"]  # fmt: skip
+                summary[env][m]["matrix"] = {
+                    "success": doc["mean"]["success"],
+                    "success_unseen_pairs": float(np.mean(both)) if both else None,
+                    "amount_error": doc["mean"]["amount_error"],
+                    "spilled": doc["mean"]["spilled"],
+                }
+                s = summary[env][m]["matrix"]
+                lines.append(
+                    f"| {m} | {s['success']:.2f} | {s['success_unseen_pairs']:.2f} | "
+                    f"{s['amount_error']:.1f} | {s['spilled']:.2f} |"
+                )
+            lines += ["", f"![success per source and target]({heat.name})", ""]
     (out / "report.md").write_text("\n".join(lines) + "\n")
     (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     return summary

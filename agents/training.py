@@ -332,20 +332,36 @@ def plot_curve(out: Path, title: str) -> Path | None:
     return png
 
 
-def make_training_env(config: TrainConfig, n_envs: int, normalize: dict | None, env_kwargs: dict):
-    """The vector env: subprocess workers when ``n_envs > 1``, normalised if asked."""
+def make_training_env(
+    config: TrainConfig,
+    n_envs: int,
+    normalize: dict | None,
+    env_kwargs: dict,
+    start_near_target: float = 0.0,
+):
+    """The vector env: subprocess workers when ``n_envs > 1``, normalised if asked.
+
+    ``start_near_target``: the share of Pour-v0 training episodes that start with the lip
+    over the target (:class:`~pour_gym.agents.curriculum.StartNearTarget`).
+    """
     from stable_baselines3.common.env_util import make_vec_env
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNormalize
 
+    from pour_gym.agents.curriculum import StartNearTarget
+
+    wrap = {}
+    if start_near_target > 0.0:
+        wrap = {"wrapper_class": StartNearTarget, "wrapper_kwargs": {"share": start_near_target}}
     if n_envs > 1:
         venv = make_vec_env(
             config.env, n_envs=n_envs, seed=config.seed, env_kwargs=env_kwargs,
-            vec_env_cls=SubprocVecEnv, vec_env_kwargs={"start_method": "forkserver"},
+            vec_env_cls=SubprocVecEnv, vec_env_kwargs={"start_method": "forkserver"}, **wrap,
         )  # fmt: skip
     else:
         venv = make_vec_env(
-            config.env, n_envs=1, seed=config.seed, env_kwargs=env_kwargs, vec_env_cls=DummyVecEnv
-        )
+            config.env, n_envs=1, seed=config.seed, env_kwargs=env_kwargs,
+            vec_env_cls=DummyVecEnv, **wrap,
+        )  # fmt: skip
     if normalize:
         venv = VecNormalize(venv, **normalize)
     return venv
@@ -373,6 +389,10 @@ def train(config: TrainConfig) -> dict:
     n_envs = int(params.pop("n_envs", 1))
     policy = params.pop("policy", "MlpPolicy")
     normalize = params.pop("normalize", None)
+    # The recipe's environment arguments (reward weights, ...); the run's own win.
+    recipe_env = params.pop("env_kwargs", {}) or {}
+    torch_threads = int(params.pop("torch_threads", 1))
+    start_near_target = float(params.pop("start_near_target", 0.0))
     train_objects = list(expand_containers(config.objects))
     out = config.run_dir()
     ckpt_dir = out / "checkpoints"
@@ -386,12 +406,24 @@ def train(config: TrainConfig) -> dict:
                 "n_envs": n_envs,
                 "policy": policy,
                 "normalize": normalize,
+                "start_near_target": start_near_target,
+                # What the environments were made with (recipe and run): evaluate uses it.
+                "env_kwargs": {**recipe_env, **config.env_kwargs},
             },
             indent=2,
         )
     )
-    env_kwargs = {"objects": train_objects, "obs_mode": config.obs_mode, **config.env_kwargs}
-    venv = make_training_env(config, n_envs, normalize, env_kwargs)
+    import torch
+
+    # The learner and the environments' fluid share the cores: one thread for torch.
+    torch.set_num_threads(torch_threads)
+    env_kwargs = {
+        "objects": train_objects,
+        "obs_mode": config.obs_mode,
+        **recipe_env,
+        **config.env_kwargs,
+    }
+    venv = make_training_env(config, n_envs, normalize, env_kwargs, start_near_target)
     checkpoint, done = _latest_checkpoint(ckpt_dir)
     if checkpoint is not None:
         stats = ckpt_dir / f"vecnormalize_{done}_steps.pkl"
@@ -422,7 +454,7 @@ def train(config: TrainConfig) -> dict:
         expand_containers(config.eval_objects),
         config.eval_episodes,
         seed=config.eval_seed,
-        env_kwargs={"obs_mode": config.obs_mode, **config.env_kwargs},
+        env_kwargs={"obs_mode": config.obs_mode, **recipe_env, **config.env_kwargs},
         trained_on=train_objects,
     )
     result.update(model=str(out / "model.zip"), timesteps=config.timesteps, algo=config.algo)

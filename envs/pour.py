@@ -142,8 +142,10 @@ class PourEnv(PourGymEnv):
     | ``upright_weight`` | float | 0.0 | weight of ``upright`` |
     | ``render_mode`` | str or None | None | ``"rgb_array"`` or ``"human"`` |
 
-    ``reset(options=...)`` accepts ``source``, ``target`` (names or mesh paths) and
-    ``target_amount`` (particles).
+    ``reset(options=...)`` accepts ``source``, ``target`` (names or mesh paths),
+    ``target_amount`` (particles) and ``near_target`` (true: the lip starts over the near
+    half of the target's opening, 0.1-0.9 rim radii before its centre towards the source
+    and within 0.4 to the sides, instead of at the origin; a start for curricula).
 
     ## Version History
     * v0 (this release): the fluid takes substeps by the CFL bound and puts back particles
@@ -154,7 +156,7 @@ class PourEnv(PourGymEnv):
       the fluid above the source's lowest rim vertex (the thesis's lip point, through
       :mod:`pour_gym.features`; it was the held lip's height); feature ``in_source``
       added; reward weights and the ``time``, ``aim`` and ``upright`` shaping terms are
-      arguments; ``num_threads`` added.
+      arguments; ``num_threads`` and the reset option ``near_target`` added.
     * v0 (first release): 1000 particles, six 1/60 s fluid steps per step.
     """
 
@@ -260,7 +262,7 @@ class PourEnv(PourGymEnv):
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         """Start an episode; ``options`` may fix ``source``, ``target``, ``target_amount``."""
         super().reset(seed=seed)
-        options = self._options(options, {"source", "target", "target_amount"})
+        options = self._options(options, {"source", "target", "target_amount", "near_target"})
         source = self._choose(self.sources, options.get("source"))
         target = self._choose(self.targets, options.get("target"))
         placed = self._place({"source": source, "target": target})
@@ -276,6 +278,12 @@ class PourEnv(PourGymEnv):
         self._lip_local = np.array([gs.rim_center[0] - gs.rim_radius, gs.rim_center[1], gs.height])
         self.z_min = gt.height + gs.height + 0.01
         self.lip = np.array([0.0, 0.0, self.z_min + rng.uniform(0.0, 0.05)])
+        if options.get("near_target"):
+            # Over the near half of the target's opening (a start for curricula: the
+            # approach is then short, and a tilt pours into the target).
+            centre = self.target_pos + rot_t @ gt.rim_center
+            offset = np.array([-0.5, 0.0]) + rng.uniform(-0.4, 0.4, 2)
+            self.lip[:2] = centre[:2] + offset * gt.rim_radius
         self.tilt = 0.0
         self.world.teleport(self.source, *self.source_pose(self.lip, self.tilt))
         v = self.world.particle_volume

@@ -125,7 +125,7 @@ def test_pickles_as_its_arguments_and_refuses_bad_actions(env_id):
 def test_observations_hold_the_library_features():
     """The features in each observation are the numbers pour_gym.features computes."""
     pour = make("PourGym/Pour-v0")
-    obs, info = pour.reset(seed=3)
+    obs, _ = pour.reset(seed=3)
     for _ in range(12):  # tilt until some fluid stands above the lip
         obs, *_ = pour.step(np.array([0.0, 0.0, 0.0, 1.0]))
     u = pour.unwrapped
@@ -147,7 +147,7 @@ def test_observations_hold_the_library_features():
     pour.close()
 
     drop = make("PourGym/ParticleDrop-v0")
-    obs, info = drop.reset(seed=0, options={"fill": 0.3})
+    obs, _ = drop.reset(seed=0, options={"fill": 0.3})
     d = drop.unwrapped
     c = d.container
     g = c.asset.geometry
@@ -156,7 +156,7 @@ def test_observations_hold_the_library_features():
     drop.close()
 
     tilt = make("PourGym/TiltPour-v0")
-    obs, info = tilt.reset(seed=0, options={"fill": 0.7, "tilt_deg": 50.0})
+    obs, _ = tilt.reset(seed=0, options={"fill": 0.7, "tilt_deg": 50.0})
     u = tilt.unwrapped
     rest = u.rest @ u.rotation.T
     _, f4 = fluid_features(

@@ -18,8 +18,6 @@ SMALL = {"source_particles": 150, "amount_range": (20, 40), "objects": "red_cup"
 def _make():
     import gymnasium as gym
 
-    import pour_gym  # noqa: F401 - the worker registers the environments too
-
     return gym.make("PourGym/Pour-v0", **SMALL)
 
 
@@ -30,7 +28,7 @@ def test_subprocess_workers_step_pour(start_method):
     obs = venv.reset()
     assert obs.shape == (2, 16)
     for _ in range(5):
-        obs, rewards, dones, infos = venv.step(np.zeros((2, 4), dtype=np.float32))
+        obs, _rewards, _dones, infos = venv.step(np.zeros((2, 4), dtype=np.float32))
     assert np.isfinite(obs).all() and len(infos) == 2
     # A worker process runs its fluid on one thread.
     assert venv.get_attr("num_threads") == [None, None]
@@ -54,7 +52,9 @@ def test_async_make_vec_after_the_parent_stepped(tmp_path):
         "for _ in range(5): venv.step(venv.action_space.sample())\n"
         "venv.close(); print('ok')\n"
     )
-    proc = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=600)
+    proc = subprocess.run(
+        [sys.executable, str(script)], capture_output=True, text=True, timeout=600
+    )
     assert proc.returncode == 0 and proc.stdout.strip().endswith("ok"), proc.stderr[-2000:]
     assert "abort" not in proc.stderr.lower()
 

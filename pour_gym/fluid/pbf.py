@@ -29,7 +29,7 @@ from dataclasses import asdict, dataclass
 import numba as nb
 import numpy as np
 
-from pour_gym.fluid.sdf import SignedDistanceField, trilinear, trilinear_distance
+from pour_gym.fluid.sdf import SignedDistanceField, trilinear
 
 GRAVITY = np.array([0.0, 0.0, -9.81])
 # Water poured from a table-top cup never moves this fast; a particle that does has diverged.
@@ -265,8 +265,8 @@ def _to_local(rot, trans, x, y, z):
 
 
 @nb.njit(cache=True, inline="always")
-def _field(values, offs, dims, origins, spacings, k, x, y, z):
-    """Collider k's signed distance and unit gradient at a point of its frame."""
+def _sample(values, offs, dims, origins, spacings, k, x, y, z, gradient):
+    """Collider k's signed distance (and unit gradient) at a point of its frame."""
     return trilinear(
         values,
         offs[k],
@@ -280,25 +280,7 @@ def _field(values, offs, dims, origins, spacings, k, x, y, z):
         x,
         y,
         z,
-    )
-
-
-@nb.njit(cache=True, inline="always")
-def _distance(values, offs, dims, origins, spacings, k, x, y, z):
-    """Collider k's signed distance alone at a point of its frame."""
-    return trilinear_distance(
-        values,
-        offs[k],
-        dims[k, 0],
-        dims[k, 1],
-        dims[k, 2],
-        origins[k, 0],
-        origins[k, 1],
-        origins[k, 2],
-        spacings[k],
-        x,
-        y,
-        z,
+        gradient,
     )
 
 
@@ -407,8 +389,9 @@ def _first_entry(values, offs, dims, origins, spacings, k, sx, sy, sz, qx, qy, q
     t = 0.0
     inside = False
     while t < length:
-        d = _distance(values, offs, dims, origins, spacings, k,
-                      sx + dx * t / length, sy + dy * t / length, sz + dz * t / length)  # fmt: skip
+        f = t / length
+        px, py, pz = sx + dx * f, sy + dy * f, sz + dz * f
+        d = _sample(values, offs, dims, origins, spacings, k, px, py, pz, False)[0]
         if d < 0.0:
             inside = True
             break
@@ -418,8 +401,8 @@ def _first_entry(values, offs, dims, origins, spacings, k, sx, sy, sz, qx, qy, q
     lo, hi = 0.0, t / length
     for _ in range(20):
         mid = 0.5 * (lo + hi)
-        dm = _distance(values, offs, dims, origins, spacings, k,
-                       sx + mid * dx, sy + mid * dy, sz + mid * dz)  # fmt: skip
+        dm = _sample(values, offs, dims, origins, spacings, k,
+                       sx + mid * dx, sy + mid * dy, sz + mid * dz, False)[0]  # fmt: skip
         if dm > radius:
             lo = mid
         else:
@@ -441,7 +424,7 @@ def _collide_one(p, prev, i, k, radius, values, offs, dims, origins, spacings, r
     of the corner).
     """
     qx, qy, qz = _to_local(rot_e[k], tr_e[k], p[i, 0], p[i, 1], p[i, 2])
-    d1 = _distance(values, offs, dims, origins, spacings, k, qx, qy, qz)
+    d1 = _sample(values, offs, dims, origins, spacings, k, qx, qy, qz, False)[0]
     sx, sy, sz = _to_local(rot_s[k], tr_s[k], prev[i, 0], prev[i, 1], prev[i, 2])
     length = np.sqrt((qx - sx) ** 2 + (qy - sy) ** 2 + (qz - sz) ** 2)
     # Every point of the path is within `length` of its end: a wall farther than that from
@@ -453,13 +436,17 @@ def _collide_one(p, prev, i, k, radius, values, offs, dims, origins, spacings, r
     # (Lipschitz again: d0 >= d1 - length, so an end farther out than the path is long
     # rules it out unsampled); a particle that started inside (no side to return to) is
     # only pushed.
-    d0 = _distance(values, offs, dims, origins, spacings, k, sx, sy, sz) if d1 <= length else d1
+    d0 = (
+        _sample(values, offs, dims, origins, spacings, k, sx, sy, sz, False)[0]
+        if d1 <= length
+        else d1
+    )
     if d0 > 0.0 and d0 + d1 <= length:
         f = _first_entry(values, offs, dims, origins, spacings, k, sx, sy, sz, qx, qy, qz, radius)
         if f < 1.0:
             qx, qy, qz = sx + f * (qx - sx), sy + f * (qy - sy), sz + f * (qz - sz)
             tunnelled = 1
-    d, gx, gy, gz = _field(values, offs, dims, origins, spacings, k, qx, qy, qz)
+    d, gx, gy, gz = _sample(values, offs, dims, origins, spacings, k, qx, qy, qz, True)
     if d >= radius and tunnelled == 0:
         return 0
     for _ in range(4):
@@ -467,7 +454,7 @@ def _collide_one(p, prev, i, k, radius, values, offs, dims, origins, spacings, r
             break
         push = radius - d
         qx, qy, qz = qx + push * gx, qy + push * gy, qz + push * gz
-        d, gx, gy, gz = _field(values, offs, dims, origins, spacings, k, qx, qy, qz)
+        d, gx, gy, gz = _sample(values, offs, dims, origins, spacings, k, qx, qy, qz, True)
     r = rot_e[k]
     t = tr_e[k]
     for a in range(3):
@@ -489,7 +476,7 @@ def _wall_term(i, p, wall, floor, has_floor, h, wall_table, values, offs, dims, 
     nearest = -1
     for k in range(offs.shape[0]):
         lx, ly, lz = _to_local(rot_e[k], tr_e[k], p[i, 0], p[i, 1], p[i, 2])
-        dk = _distance(values, offs, dims, origins, spacings, k, lx, ly, lz)
+        dk = _sample(values, offs, dims, origins, spacings, k, lx, ly, lz, False)[0]
         if dk < w:
             w, nearest = dk, k
     wall[i, 0] = 0.0
@@ -508,7 +495,7 @@ def _wall_term(i, p, wall, floor, has_floor, h, wall_table, values, offs, dims, 
     nx, ny, nz = 0.0, 0.0, 1.0  # the floor's normal
     if nearest >= 0:
         lx, ly, lz = _to_local(rot_e[nearest], tr_e[nearest], p[i, 0], p[i, 1], p[i, 2])
-        _, gx, gy, gz = _field(values, offs, dims, origins, spacings, nearest, lx, ly, lz)
+        _, gx, gy, gz = _sample(values, offs, dims, origins, spacings, nearest, lx, ly, lz, True)
         r = rot_e[nearest]
         nx = r[0, 0] * gx + r[0, 1] * gy + r[0, 2] * gz
         ny = r[1, 0] * gx + r[1, 1] * gy + r[1, 2] * gz
@@ -797,9 +784,8 @@ def _wall_distance(p, out, values, nx, ny, nz, origin, spacing, rot, trans):
     """out[i] = min(out[i], signed distance of particle i to one container's material)."""
     for i in range(p.shape[0]):
         qx, qy, qz = _to_local(rot, trans, p[i, 0], p[i, 1], p[i, 2])
-        d = trilinear(values, 0, nx, ny, nz, origin[0], origin[1], origin[2], spacing, qx, qy, qz)[
-            0
-        ]
+        ox, oy, oz = origin[0], origin[1], origin[2]
+        d = trilinear(values, 0, nx, ny, nz, ox, oy, oz, spacing, qx, qy, qz, False)[0]
         if d < out[i]:
             out[i] = d
 

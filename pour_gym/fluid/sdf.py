@@ -177,8 +177,8 @@ def _clamp_axis(x, origin, spacing, n):
 
 
 @nb.njit(cache=True, fastmath=True)
-def trilinear(values, offset, nx, ny, nz, ox, oy, oz, spacing, x, y, z):
-    """Trilinear signed distance and its unit gradient at a point of a field's frame.
+def trilinear(values, offset, nx, ny, nz, ox, oy, oz, spacing, x, y, z, gradient=True):
+    """Trilinear signed distance (and its unit gradient) at a point of a field's frame.
 
     The field is stored flat (``values[offset:]``, x slowest, z fastest), so that the
     fields of several containers can travel to compiled code as one array. Outside the
@@ -187,7 +187,8 @@ def trilinear(values, offset, nx, ny, nz, ox, oy, oz, spacing, x, y, z):
 
     Returns:
         ``(d, gx, gy, gz)``: distance in m and the gradient's direction (the outward
-        normal of the nearest surface).
+        normal of the nearest surface); the gradient is (0, 0, 0) without ``gradient``
+        (most particles are far from every wall, and only their distance is needed).
     """
     extra = 0.0
     u, e = _clamp_axis(x, ox, spacing, nx)
@@ -214,7 +215,9 @@ def trilinear(values, offset, nx, ny, nz, ox, oy, oz, spacing, x, y, z):
     c11 = c011 * (1 - fx) + c111 * fx
     c0 = c00 * (1 - fy) + c10 * fy
     c1 = c01 * (1 - fy) + c11 * fy
-    d = c0 * (1 - fz) + c1 * fz
+    d = c0 * (1 - fz) + c1 * fz + extra
+    if not gradient:
+        return d, 0.0, 0.0, 0.0
     gx = ((c100 - c000) * (1 - fy) + (c110 - c010) * fy) * (1 - fz) + (
         (c101 - c001) * (1 - fy) + (c111 - c011) * fy
     ) * fz
@@ -224,31 +227,8 @@ def trilinear(values, offset, nx, ny, nz, ox, oy, oz, spacing, x, y, z):
     gz = c1 - c0
     norm = np.sqrt(gx * gx + gy * gy + gz * gz)
     if norm > 1e-12:
-        return d + extra, gx / norm, gy / norm, gz / norm
-    return d + extra, 0.0, 0.0, 1.0
-
-
-@nb.njit(cache=True, fastmath=True)
-def trilinear_distance(values, offset, nx, ny, nz, ox, oy, oz, spacing, x, y, z):
-    """:func:`trilinear`'s distance alone (most particles are far from every wall)."""
-    extra = 0.0
-    u, e = _clamp_axis(x, ox, spacing, nx)
-    extra += e
-    v, e = _clamp_axis(y, oy, spacing, ny)
-    extra += e
-    w, e = _clamp_axis(z, oz, spacing, nz)
-    extra += e
-    i, j, m = int(u), int(v), int(w)
-    fx, fy, fz = u - i, v - j, w - m
-    base = offset + (i * ny + j) * nz + m
-    sx, sy = ny * nz, nz
-    c00 = values[base] * (1 - fx) + values[base + sx] * fx
-    c10 = values[base + sy] * (1 - fx) + values[base + sx + sy] * fx
-    c01 = values[base + 1] * (1 - fx) + values[base + sx + 1] * fx
-    c11 = values[base + sy + 1] * (1 - fx) + values[base + sx + sy + 1] * fx
-    c0 = c00 * (1 - fy) + c10 * fy
-    c1 = c01 * (1 - fy) + c11 * fy
-    return c0 * (1 - fz) + c1 * fz + extra
+        return d, gx / norm, gy / norm, gz / norm
+    return d, 0.0, 0.0, 1.0
 
 
 @nb.njit(cache=True)
