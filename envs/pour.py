@@ -56,6 +56,8 @@ UPRIGHT_DEG = 3.0
 RESTING_SPEED = 0.05  # m/s: a particle in no container moving slower has spilled
 # The fill left over when the fill is sized to the task, particles.
 FILL_MARGIN = 100
+# Where the aim shaping draws the lip: this many target rim radii before its centre.
+AIM_OFFSET = 0.5
 
 
 class PourEnv(PourGymEnv):
@@ -94,10 +96,11 @@ class PourEnv(PourGymEnv):
     ``progress`` = increase of min(poured, T) / T; ``overshoot`` = -(increase of
     max(poured - T, 0)) / T; ``spill`` = -(increase of spilled particles) / T;
     ``success`` = 1 on the step that ends a successful episode; ``time`` = -1 per step;
-    ``aim`` = the change of -(horizontal distance of the lip from the target's rim
-    centre, over its rim radius) (potential-based shaping); ``upright`` = the change of
-    -(tilt / 90 deg) once poured plus in flight reaches T less the tolerance
-    (potential-based shaping towards ending upright). ``info["reward_<term>"]`` holds
+    ``aim`` = the change of -(horizontal distance of the lip from the point half a rim
+    radius before the target's rim centre, over the rim radius) (potential-based
+    shaping); ``upright`` = the change of -(tilt / 90 deg) once poured plus in flight
+    reaches T less the tolerance (potential-based shaping towards ending upright);
+    ``control`` = -(mean square of the lip velocity actions). ``info["reward_<term>"]`` holds
     each weighted term; they sum to the reward.
 
     ## Starting State
@@ -140,6 +143,7 @@ class PourEnv(PourGymEnv):
     | ``time_weight`` | float | 0.0 | weight of ``time`` |
     | ``aim_weight`` | float | 0.0 | weight of ``aim`` |
     | ``upright_weight`` | float | 0.0 | weight of ``upright`` |
+    | ``control_weight`` | float | 0.0 | weight of ``control`` |
     | ``render_mode`` | str or None | None | ``"rgb_array"`` or ``"human"`` |
 
     ``reset(options=...)`` accepts ``source``, ``target`` (names or mesh paths),
@@ -156,7 +160,8 @@ class PourEnv(PourGymEnv):
       the fluid above the source's lowest rim vertex (the thesis's lip point, through
       :mod:`pour_gym.features`; it was the held lip's height); feature ``in_source``
       added; reward weights and the ``time``, ``aim`` and ``upright`` shaping terms are
-      arguments; ``num_threads`` and the reset option ``near_target`` added.
+      arguments (with ``control``); ``num_threads`` and the reset option ``near_target``
+      added.
     * v0 (first release): 1000 particles, six 1/60 s fluid steps per step.
     """
 
@@ -183,6 +188,7 @@ class PourEnv(PourGymEnv):
         time_weight: float = 0.0,
         aim_weight: float = 0.0,
         upright_weight: float = 0.0,
+        control_weight: float = 0.0,
         render_mode: str | None = None,
     ):
         EzPickle.__init__(
@@ -208,6 +214,7 @@ class PourEnv(PourGymEnv):
             time_weight=time_weight,
             aim_weight=aim_weight,
             upright_weight=upright_weight,
+            control_weight=control_weight,
             render_mode=render_mode,
         )
         super().__init__(
@@ -224,6 +231,7 @@ class PourEnv(PourGymEnv):
                 "time": time_weight,
                 "aim": aim_weight,
                 "upright": upright_weight,
+                "control": control_weight,
             },
         )
         self._check_obs_mode(obs_mode)
@@ -352,6 +360,7 @@ class PourEnv(PourGymEnv):
             "time": -1.0,
             "aim": potentials["aim"] - self._potentials["aim"],
             "upright": potentials["upright"] - self._potentials["upright"],
+            "control": -float(np.mean(a[:3] ** 2)),
         }
         self._potentials = potentials
         reward, weighted = self._reward(terms)
@@ -388,7 +397,10 @@ class PourEnv(PourGymEnv):
         """Potentials of the shaping terms (their changes are the terms)."""
         gt = self.target.asset.geometry
         centre = self.target.to_world(gt.rim_center)
-        aim = -min(float(np.hypot(*(self.lip[:2] - centre[:2]))) / gt.rim_radius, 10.0)
+        # The lip pours into the target from over the near half of its opening (the stream
+        # leaves it moving towards +x, the way the source tilts).
+        aim_at = centre[:2] - np.array([AIM_OFFSET * gt.rim_radius, 0.0])
+        aim = -min(float(np.hypot(*(self.lip[:2] - aim_at))) / gt.rim_radius, 10.0)
         c = self._counts
         done = c["poured"] + c["in_flight"] >= self.target_amount - self.tolerance
         return {"aim": aim, "upright": -self.tilt / 90.0 if done else 0.0}
