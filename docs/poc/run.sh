@@ -7,6 +7,7 @@ set -e
 # agents/poc_search_red_cup_20.json, the closed-loop policy's default parameters).
 pour-gym search --objects red_cup --target-objects standard_bowl --objective error \
     --target-amount 20 --generations 10 --population 8 --episodes 6 --seed 1 --out docs/poc
+cp docs/poc/search.json agents/poc_search_red_cup_20.json
 # The thesis's open-loop policy: 60 red-cup samples, then the seven cups, 3 pours each.
 pour-gym poc --policy thesis --samples 60 --episodes 3 --seed 100 --out docs/poc
 # The closed-loop policy at 20 particles (2.5 ml), 10 ml and 25 ml (seeds the search
