@@ -58,6 +58,10 @@ RESTING_SPEED = 0.05  # m/s: a particle in no container moving slower has spille
 FILL_MARGIN = 100
 # Where the aim shaping draws the lip: this many target rim radii before its centre.
 AIM_OFFSET = 0.5
+# tilt_control="angle": the action's tilt range reaches this far below upright (deg), so a
+# band of actions, not one value, sets the source upright.
+UPRIGHT_BAND = 20.0
+TILT_CONTROLS = ("rate", "angle")
 
 
 class PourEnv(PourGymEnv):
@@ -76,7 +80,12 @@ class PourEnv(PourGymEnv):
     ``Box(-1, 1, (4,), float32)``: lip velocity along x, y, z (times ``max_speed`` m/s) and
     tilt rate (times ``max_tilt_rate`` degrees/s; positive tilts towards the target). The
     tilt stays within [0, ``max_tilt``] degrees; the lip stays in a box over the table and
-    high enough that the source clears the target's rim.
+    high enough that the source clears the target's rim. With ``tilt_control="angle"`` the
+    fourth action is the tilt to go to instead, from -``UPRIGHT_BAND`` (20 deg; upright
+    below 0) at -1 to ``max_tilt`` at 1, reached at no more than ``max_tilt_rate``: the
+    same motions, in a form where exploring actions reach every tilt (a learner's
+    Gaussian noise on a rate seldom adds up to the 60-90 deg at which a small fill
+    pours).
 
     ## Observation Space
     ``obs_mode="features"`` (default): ``Box(-10, 10, (16,), float32)``, see
@@ -134,6 +143,7 @@ class PourEnv(PourGymEnv):
     | ``max_speed`` | float | 0.15 | lip speed at action 1, m/s |
     | ``max_tilt_rate`` | float | 60.0 | tilt rate at action 1, deg/s |
     | ``max_tilt`` | float | 135.0 | largest tilt, deg |
+    | ``tilt_control`` | str | ``"rate"`` | the tilt action: ``"rate"`` or ``"angle"`` |
     | ``pour_threshold`` | int | 5 | particles out of the source that make a pour |
     | ``pour_steps`` | int | 3 | steps in a row they must stay out |
     | ``progress_weight`` | float | 1.0 | weight of ``progress`` |
@@ -160,8 +170,8 @@ class PourEnv(PourGymEnv):
       the fluid above the source's lowest rim vertex (the thesis's lip point, through
       :mod:`pour_gym.features`; it was the held lip's height); feature ``in_source``
       added; reward weights and the ``time``, ``aim`` and ``upright`` shaping terms are
-      arguments (with ``control``); ``num_threads`` and the reset option ``near_target``
-      added.
+      arguments (with ``control``); ``num_threads``, ``tilt_control`` and the reset
+      option ``near_target`` added.
     * v0 (first release): 1000 particles, six 1/60 s fluid steps per step.
     """
 
@@ -179,6 +189,7 @@ class PourEnv(PourGymEnv):
         max_speed: float = 0.15,
         max_tilt_rate: float = 60.0,
         max_tilt: float = 135.0,
+        tilt_control: str = "rate",
         pour_threshold: int = 5,
         pour_steps: int = 3,
         progress_weight: float = 1.0,
@@ -205,6 +216,7 @@ class PourEnv(PourGymEnv):
             max_speed=max_speed,
             max_tilt_rate=max_tilt_rate,
             max_tilt=max_tilt,
+            tilt_control=tilt_control,
             pour_threshold=pour_threshold,
             pour_steps=pour_steps,
             progress_weight=progress_weight,
@@ -250,6 +262,8 @@ class PourEnv(PourGymEnv):
                 raise ValueError(f"{name} must be positive, not {value}")
         if not 0 < max_tilt <= 180:
             raise ValueError(f"max_tilt must be in (0, 180] degrees, not {max_tilt}")
+        if tilt_control not in TILT_CONTROLS:
+            raise ValueError(f"tilt_control must be one of {TILT_CONTROLS}, not {tilt_control!r}")
         self.sources = self._containers(source_objects if source_objects is not None else objects)
         self.targets = self._containers(target_objects if target_objects is not None else objects)
         self.obs_mode = obs_mode
@@ -258,6 +272,7 @@ class PourEnv(PourGymEnv):
         self.max_speed = float(max_speed)
         self.max_tilt_rate = float(max_tilt_rate)
         self.max_tilt = float(max_tilt)
+        self.tilt_control = tilt_control
         self.pour_threshold = int(pour_threshold)
         self.pour_steps = int(pour_steps)
         self.dt = 0.1
@@ -334,7 +349,12 @@ class PourEnv(PourGymEnv):
         lo = np.array([-0.1, -0.3, self.z_min])
         hi = np.array([0.45, 0.3, 0.5])
         self.lip = np.clip(self.lip + a[:3] * self.max_speed * self.dt, lo, hi)
-        tilt = self.tilt + a[3] * self.max_tilt_rate * self.dt
+        most = self.max_tilt_rate * self.dt
+        if self.tilt_control == "rate":
+            tilt = self.tilt + a[3] * most
+        else:
+            goal = -UPRIGHT_BAND + 0.5 * (a[3] + 1.0) * (self.max_tilt + UPRIGHT_BAND)
+            tilt = self.tilt + np.clip(goal - self.tilt, -most, most)
         self.tilt = float(np.clip(tilt, 0.0, self.max_tilt))
         # The fluid moves the source there smoothly over the step, in as many substeps as
         # the motion needs.
