@@ -41,6 +41,8 @@ ALGORITHMS = {
     "tqc": "sb3_contrib:TQC",
 }
 NORMALISER = "vecnormalize.pkl"
+# Trained models shipped with the package, one folder each (model.zip, config.json, ...).
+MODELS = Path(__file__).resolve().parent / "models"
 
 
 def algorithm(name: str):
@@ -177,7 +179,7 @@ def load_run(model_path: str | Path, algo: str | None = None) -> Run:
     """Load ``model.zip`` with the ``config.json`` and ``vecnormalize.pkl`` beside it.
 
     Args:
-        model_path: the model file.
+        model_path: the model file, or the name of a shipped model (:func:`shipped_models`).
         algo: the algorithm, if there is no ``config.json`` to say it.
 
     Raises:
@@ -185,7 +187,13 @@ def load_run(model_path: str | Path, algo: str | None = None) -> Run:
     """
     path = Path(model_path)
     if not path.is_file():
-        raise InputError(f"no model file {str(model_path)!r}")
+        shipped = MODELS / str(model_path) / "model.zip"
+        if not shipped.is_file():
+            names = ", ".join(shipped_models()) or "none"
+            raise InputError(
+                f"no model file {str(model_path)!r}: give a model.zip or a shipped model ({names})"
+            )
+        path = shipped
     config_path = path.parent / "config.json"
     config = json.loads(config_path.read_text()) if config_path.is_file() else {}
     name = config.get("algo", algo)
@@ -202,6 +210,11 @@ def load_run(model_path: str | Path, algo: str | None = None) -> Run:
         normaliser.training = False
         normaliser.norm_reward = False
     return Run(model=model, config=config, normaliser=normaliser)
+
+
+def shipped_models() -> list[str]:
+    """The names of the trained models that ship with pour-gym (``agents/models/<name>``)."""
+    return sorted(p.parent.name for p in MODELS.glob("*/model.zip"))
 
 
 def _latest_checkpoint(directory: Path) -> tuple[Path | None, int]:

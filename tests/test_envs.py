@@ -122,6 +122,27 @@ def test_pickles_as_its_arguments_and_refuses_bad_actions(env_id):
     later.close()
 
 
+def test_angle_tilt_control_goes_to_the_commanded_tilt_at_the_rate_limit():
+    """tilt_control="angle": action 1 tilts to max_tilt, no faster than max_tilt_rate."""
+    env = make("PourGym/Pour-v0", objects="red_cup", tilt_control="angle", max_tilt_rate=60.0)
+    env.reset(seed=0)
+    tilts = []
+    for _ in range(4):
+        _, _, _, _, info = env.step(np.array([0, 0, 0, 1], np.float32))
+        tilts.append(info["tilt_deg"])
+    assert np.allclose(tilts, [6.0, 12.0, 18.0, 24.0])  # 60 deg/s for 0.1 s a step
+    half = -20.0 + 0.5 * (0.0 + 1.0) * (135.0 + 20.0)  # action 0: the middle of [-20, 135]
+    for _ in range(20):
+        _, _, _, _, info = env.step(np.array([0, 0, 0, 0], np.float32))
+    assert info["tilt_deg"] == pytest.approx(half)
+    for _ in range(15):  # a band of actions near -1 means upright
+        _, _, _, _, info = env.step(np.array([0, 0, 0, -0.8], np.float32))
+    assert info["tilt_deg"] == 0.0
+    env.close()
+    with pytest.raises(ValueError, match="tilt_control"):
+        make("PourGym/Pour-v0", objects="red_cup", tilt_control="torque")
+
+
 def test_observations_hold_the_library_features():
     """The features in each observation are the numbers pour_gym.features computes."""
     pour = make("PourGym/Pour-v0")

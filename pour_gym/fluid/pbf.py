@@ -421,7 +421,8 @@ def _collide_one(p, prev, i, k, radius, values, offs, dims, origins, spacings, r
     particle is put back where it entered, on the side it came from: however far it moved,
     it cannot pass through a wall. Then it is pushed along the field's gradient until it is
     a radius off the wall (repeated: one push out of a corner can land near the other wall
-    of the corner).
+    of the corner). A push that carries it out of the far side of a thin wall, or leaves
+    it in the material of a crevice too narrow for it, is undone the same way.
     """
     qx, qy, qz = _to_local(rot_e[k], tr_e[k], p[i, 0], p[i, 1], p[i, 2])
     d1 = _sample(values, offs, dims, origins, spacings, k, qx, qy, qz, False)[0]
@@ -455,6 +456,27 @@ def _collide_one(p, prev, i, k, radius, values, offs, dims, origins, spacings, r
         push = radius - d
         qx, qy, qz = qx + push * gx, qy + push * gy, qz + push * gz
         d, gx, gy, gz = _sample(values, offs, dims, origins, spacings, k, qx, qy, qz, True)
+    span = np.sqrt((qx - sx) ** 2 + (qy - sy) ** 2 + (qz - sz) ** 2)
+    if d < 0.0:
+        # Pushed from wall to wall in a crevice narrower than a particle (a scan's folds):
+        # still in the material, where the gradient may point out of the far side of a
+        # thin wall. Stay where the substep started instead, if that was less deep.
+        d0 = _sample(values, offs, dims, origins, spacings, k, sx, sy, sz, False)[0]
+        if d0 > d:
+            qx, qy, qz = sx, sy, sz
+            tunnelled = 1
+    elif tunnelled == 0 and span > d:
+        # A path that ends inside a thin wall, past its middle, is pushed out of the far
+        # side: the push finishes a crossing. Where the path from the start to the pushed
+        # position runs through material (only possible if it is at least d0 + d long),
+        # the particle is put back where it entered, on the side it came from.
+        d0 = _sample(values, offs, dims, origins, spacings, k, sx, sy, sz, False)[0]
+        if d0 > 0.0 and d0 + d <= span:
+            f = _first_entry(values, offs, dims, origins, spacings, k, sx, sy, sz, qx, qy, qz,
+                             radius)  # fmt: skip
+            if f < 1.0:
+                qx, qy, qz = sx + f * (qx - sx), sy + f * (qy - sy), sz + f * (qz - sz)
+                tunnelled = 1
     r = rot_e[k]
     t = tr_e[k]
     for a in range(3):
