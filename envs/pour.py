@@ -109,6 +109,8 @@ class PourEnv(PourGymEnv):
     radius before the target's rim centre, over the rim radius) (potential-based
     shaping); ``upright`` = the change of -(tilt / 90 deg) once poured plus in flight
     reaches T less the tolerance (potential-based shaping towards ending upright);
+    ``tilt`` = the change of (tilt / 90 deg) until then (potential-based shaping towards
+    the tilt at which the source pours, which exploration seldom reaches by chance);
     ``control`` = -(mean square of the lip velocity actions). ``info["reward_<term>"]`` holds
     each weighted term; they sum to the reward.
 
@@ -153,6 +155,7 @@ class PourEnv(PourGymEnv):
     | ``time_weight`` | float | 0.0 | weight of ``time`` |
     | ``aim_weight`` | float | 0.0 | weight of ``aim`` |
     | ``upright_weight`` | float | 0.0 | weight of ``upright`` |
+    | ``tilt_weight`` | float | 0.0 | weight of ``tilt`` |
     | ``control_weight`` | float | 0.0 | weight of ``control`` |
     | ``render_mode`` | str or None | None | ``"rgb_array"`` or ``"human"`` |
 
@@ -170,7 +173,7 @@ class PourEnv(PourGymEnv):
       the fluid above the source's lowest rim vertex (the thesis's lip point, through
       :mod:`pour_gym.features`; it was the held lip's height); feature ``in_source``
       added; reward weights and the ``time``, ``aim`` and ``upright`` shaping terms are
-      arguments (with ``control``); ``num_threads``, ``tilt_control`` and the reset
+      arguments (with ``control`` and ``tilt``); ``num_threads``, ``tilt_control`` and the reset
       option ``near_target`` added.
     * v0 (first release): 1000 particles, six 1/60 s fluid steps per step.
     """
@@ -199,6 +202,7 @@ class PourEnv(PourGymEnv):
         time_weight: float = 0.0,
         aim_weight: float = 0.0,
         upright_weight: float = 0.0,
+        tilt_weight: float = 0.0,
         control_weight: float = 0.0,
         render_mode: str | None = None,
     ):
@@ -226,6 +230,7 @@ class PourEnv(PourGymEnv):
             time_weight=time_weight,
             aim_weight=aim_weight,
             upright_weight=upright_weight,
+            tilt_weight=tilt_weight,
             control_weight=control_weight,
             render_mode=render_mode,
         )
@@ -243,6 +248,7 @@ class PourEnv(PourGymEnv):
                 "time": time_weight,
                 "aim": aim_weight,
                 "upright": upright_weight,
+                "tilt": tilt_weight,
                 "control": control_weight,
             },
         )
@@ -380,6 +386,7 @@ class PourEnv(PourGymEnv):
             "time": -1.0,
             "aim": potentials["aim"] - self._potentials["aim"],
             "upright": potentials["upright"] - self._potentials["upright"],
+            "tilt": potentials["tilt"] - self._potentials["tilt"],
             "control": -float(np.mean(a[:3] ** 2)),
         }
         self._potentials = potentials
@@ -423,7 +430,8 @@ class PourEnv(PourGymEnv):
         aim = -min(float(np.hypot(*(self.lip[:2] - aim_at))) / gt.rim_radius, 10.0)
         c = self._counts
         done = c["poured"] + c["in_flight"] >= self.target_amount - self.tolerance
-        return {"aim": aim, "upright": -self.tilt / 90.0 if done else 0.0}
+        tilt = self.tilt / 90.0
+        return {"aim": aim, "upright": -tilt if done else 0.0, "tilt": 0.0 if done else tilt}
 
     def _succeeded(self) -> bool:
         c = self._counts

@@ -381,7 +381,7 @@ def _pour_realtime(kwargs: dict, episodes: int, seed: int = 0) -> float:
     return steps * env.unwrapped.dt / wall
 
 
-def bench_envs(repeats: int = 3, steps: int = 200) -> dict:
+def bench_envs(repeats: int = 3, steps: int = 600) -> dict:
     """Speed of the environments at their defaults, side by side in one run.
 
     - ``pour_v0``: the scripted policy pouring from the red cup into the broad cup, episode
@@ -394,7 +394,8 @@ def bench_envs(repeats: int = 3, steps: int = 200) -> dict:
 
     Args:
         repeats: timed runs per case; the median is reported.
-        steps: steps per timed run of the vector cases.
+        steps: steps per timed run of the vector cases (600: several episodes, so that
+            resets and long steps average out as they do in training).
     """
     import functools
 

@@ -26,6 +26,7 @@ def test_hyperparameters_cover_every_env_and_algo():
         hyperparameters("PourGym/Juggle-v0", "sac")
 
 
+@pytest.mark.slow
 def test_train_py_trains_checkpoints_resumes_and_evaluates(tmp_path):
     out = tmp_path / "run"
     cmd = [
@@ -54,6 +55,7 @@ def test_train_py_trains_checkpoints_resumes_and_evaluates(tmp_path):
     assert bad.returncode == 2 and "key=value" in bad.stderr
 
 
+@pytest.mark.slow
 def test_pour_recipe_trains_and_its_model_evaluates_on_a_user_mesh(tmp_path):
     """The Pour-v0 TQC recipe end to end at a few hundred steps: subprocess workers, the
     normaliser saved and loaded, the learning curve, ``pour-gym evaluate`` on a mesh file."""
@@ -97,6 +99,7 @@ def test_pour_recipe_trains_and_its_model_evaluates_on_a_user_mesh(tmp_path):
     assert missing.returncode == 2 and "shipped model" in missing.stderr
 
 
+@pytest.mark.slow
 def test_evaluate_and_search_at_tiny_size():
     from pour_gym.agents.scripted import ScriptedPourPolicy
 
@@ -121,6 +124,7 @@ def test_evaluate_and_search_at_tiny_size():
         search("train", objective="speed")
 
 
+@pytest.mark.slow
 def test_poc_at_tiny_size():
     from pour_gym.agents.poc import KernelRegression, poc_table, run_poc
 
@@ -147,6 +151,7 @@ def test_fit_sill_finds_the_onset_of_synthetic_pours():
     assert sill == pytest.approx(0.0075, abs=0.0005)
 
 
+@pytest.mark.slow
 def test_closed_loop_poc_pours_twenty_particles():
     """The closed-loop pour (the features' stream times the tilt) hits 20 particles
     within 3 on a cup it was tuned on and on one it never saw, and spills nothing."""

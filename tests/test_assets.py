@@ -71,6 +71,7 @@ def _numbers(value, path=""):
     return {path: float(value)}
 
 
+@pytest.mark.slow
 def test_a_rebuilt_asset_matches_the_committed_one(tmp_path):
     """Within what the numbers mean: floating point differs between CPUs and BLAS builds."""
     out = write_asset(label_container("high_cup"), tmp_path / "high_cup", picture=False)
@@ -91,6 +92,7 @@ def test_a_rebuilt_asset_matches_the_committed_one(tmp_path):
             assert a[key] == b[key], key
 
 
+@pytest.mark.slow
 def test_assets_are_written_canonically_and_rebuild_byte_identically(tmp_path):
     asset = label_container("high_cup")
     one = write_asset(asset, tmp_path / "one", picture=False)

@@ -245,6 +245,7 @@ def run_scripted(objects, episodes, seed=0):
     return results
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("split", ["train", "test"])
 def test_scripted_policy_pours_the_amount(split):
     results = run_scripted(split, 10)
@@ -255,6 +256,7 @@ def test_scripted_policy_pours_the_amount(split):
         assert r["in_source"] + r["poured"] + r["in_flight"] + r["spilled"] == r["fill"]
 
 
+@pytest.mark.slow
 def test_experiments_at_tiny_size(tmp_path):
     """Both thesis experiments run end to end and their numbers are sane."""
     from pour_gym.agents.experiments import roc_curve, run_experiment

@@ -76,6 +76,7 @@ def tall_sdf(tmp_path_factory):
     return build_sdf(tall, spacing=0.001, cache_dir=tmp_path_factory.mktemp("sdf"))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("height", [0.025, 0.086])
 def test_settled_column_height_and_rest(tall_sdf, height):
     """A column settles to N v / (pi R^2) within 5 % (twice its particles' mean height),
@@ -148,6 +149,7 @@ def test_divergence_is_an_error(cup_sdf):
         fluid.step(1 / 60)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("fill", [0.6, 0.7, 0.8])
 def test_pour_onset_angle(cup_sdf, fill):
     """A cylinder filled to h, tilted slowly, pours at tan(theta) = (H - h) / R (+-3 deg)."""

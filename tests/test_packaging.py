@@ -4,9 +4,12 @@ import subprocess
 import sys
 import zipfile
 
+import pytest
+
 from pour_gym.assets import real_mesh_path
 
 
+@pytest.mark.slow
 def test_wheel_contents(tmp_path):
     subprocess.run(
         [
@@ -46,6 +49,12 @@ def test_wheel_contents(tmp_path):
     for name in ("red_cup", "ycb_mug", "pybullet_mug"):
         for file in ("mesh.obj", "labels.npy", "meta.json"):
             assert f"pour_gym/asset_files/{name}/{file}" in names
+    # The trained models ship whole: what evaluate loads beside model.zip included.
+    shipped = sorted((root / "agents" / "models").glob("*/model.zip"))
+    assert shipped, "no trained model in agents/models"
+    for model in shipped:
+        for file in ("model.zip", "config.json", "vecnormalize.pkl"):
+            assert f"pour_gym/agents/models/{model.parent.name}/{file}" in names
 
 
 def test_packaged_meshes_resolve():

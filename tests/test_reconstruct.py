@@ -19,6 +19,7 @@ def reports():
     return {name: generate_model(name).report for name in OBJECT_NAMES}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", OBJECT_NAMES)
 def test_round_trip_per_object(reports, name):
     report = reports[name]
@@ -43,6 +44,7 @@ def mean_error(reports, model, quantity):
     )
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("quantity", ["height", "rim_radius", "volume"])
 def test_mean_errors_meet_targets_and_beat_the_thesis(reports, quantity):
     offset = mean_error(reports, "offset", quantity)
@@ -51,5 +53,6 @@ def test_mean_errors_meet_targets_and_beat_the_thesis(reports, quantity):
     assert thesis_model < THESIS_MEAN_ERROR[quantity]
 
 
+@pytest.mark.slow
 def test_offset_model_holds_volume_better_than_the_thesis_model(reports):
     assert mean_error(reports, "offset", "volume") < mean_error(reports, "thesis", "volume")

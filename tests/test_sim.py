@@ -128,6 +128,7 @@ def test_bad_arguments_are_refused(world):
         world.step(1 / 60)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("fluid", ["pbf", "bullet"])
 def test_scripted_pour_lands_in_the_target(fluid):
     from pour_gym.sim.scenes import PourScript, scripted_pour

@@ -9,6 +9,7 @@ from pour_gym.soak import soak, user_meshes
 from tests.test_cli import run
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("env_id", ["PourGym/Pour-v0", "PourGym/ParticleDrop-v0"])
 def test_random_actions_break_nothing(env_id, tmp_path):
     objects = ["red_cup", *user_meshes(tmp_path)]
@@ -19,6 +20,7 @@ def test_random_actions_break_nothing(env_id, tmp_path):
         assert doc[key] == 0, (key, doc["errors"], doc["by_object"])
 
 
+@pytest.mark.slow
 def test_soak_command_prints_the_counts(tmp_path):
     proc = run("soak", "--env", "PourGym/TiltPour-v0", "--objects", "red_cup",
                "--episodes", "3", "--json")  # fmt: skip

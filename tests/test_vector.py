@@ -21,6 +21,7 @@ def _make():
     return gym.make("PourGym/Pour-v0", **SMALL)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("start_method", ["spawn", "forkserver"])
 def test_subprocess_workers_step_pour(start_method):
     venv = SubprocVecEnv([_make, _make], start_method=start_method)
@@ -37,6 +38,7 @@ def test_subprocess_workers_step_pour(start_method):
     venv.close()
 
 
+@pytest.mark.slow
 def test_async_make_vec_after_the_parent_stepped(tmp_path):
     # In a fresh interpreter: the parent steps an env on its default threads, then
     # Gymnasium forks (its default start method on Linux) two workers.

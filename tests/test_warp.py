@@ -104,6 +104,7 @@ def perturbed(models, name, seed):
 @pytest.mark.parametrize(
     ("name", "seed"), [("broad_cup", 1), ("high_cup", 2), ("standard_bowl", 3)]
 )
+@pytest.mark.slow
 def test_robust_to_pose_scale_resolution_and_noise(models, name, seed):
     source = models["red_cup"]
     mesh, truth = perturbed(models, name, seed)
