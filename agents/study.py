@@ -152,6 +152,8 @@ def study_report(
         ``{env: {mode: {"trained": success on the training containers, "unseen": mean
         success on the others, ...}}}``.
     """
+    from pour_gym.assets import expand_containers
+
     if isinstance(runs_dir, str | Path):
         roots = [Path(p) for p in str(runs_dir).split(",")]
     else:
@@ -222,8 +224,9 @@ def study_report(
             ]
             for m in ordered:
                 doc = matrices[m]
-                both = [r["success"] for r in doc["rows"] if not r["trained_on"]
-                        and r["source"] != "red_cup" and r["target"] != "red_cup"]  # fmt: skip
+                seen = set(expand_containers(modes[m]["config"]["objects"]))
+                both = [r["success"] for r in doc["rows"]
+                        if r["source"] not in seen and r["target"] not in seen]  # fmt: skip
                 summary[env][m]["matrix"] = {
                     "success": doc["mean"]["success"],
                     "success_unseen_pairs": float(np.mean(both)) if both else None,

@@ -317,7 +317,12 @@ def record_curve_point(config: TrainConfig, out: Path, model, venv, env_kwargs: 
 
 
 def plot_curve(out: Path, title: str) -> Path | None:
-    """``curve.png`` from ``curve.csv`` (success and return against steps)."""
+    """``curve.png`` from ``curve.csv``: success and return against steps.
+
+    For Pour-v0, a second panel shows the amount error and the spill.
+    """
+    import csv
+
     path = out / "curve.csv"
     if not path.is_file():
         return None
@@ -326,18 +331,34 @@ def plot_curve(out: Path, title: str) -> Path | None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    data = np.genfromtxt(path, delimiter=",", names=True)
-    data = np.atleast_1d(data)
-    fig, ax = plt.subplots(figsize=(7, 4))
-    ax.plot(data["timesteps"], data["success"], "o-", label="success rate")
+    with open(path, newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    if not rows:
+        return None
+    data = {
+        key: np.array([float(r[key]) if r[key] not in ("", "None") else np.nan for r in rows])
+        for key in rows[0]
+    }
+    pour = "amount_error" in data and not np.all(np.isnan(data["amount_error"]))
+    fig, axes = plt.subplots(1, 2 if pour else 1, figsize=(11 if pour else 7, 4), squeeze=False)
+    ax = axes[0, 0]
+    steps = data["timesteps"]
+    ax.plot(steps, data["success"], "o-", label="success rate")
     ax.set_xlabel("environment steps")
-    ax.set_ylabel("success rate (training containers, deterministic policy)")
+    ax.set_ylabel("success rate (deterministic policy)")
     ax.set_ylim(-0.02, 1.02)
     ax2 = ax.twinx()
-    ax2.plot(data["timesteps"], data["return"], "s--", color="tab:orange", label="return")
+    ax2.plot(steps, data["return"], "s--", color="tab:orange", label="return")
     ax2.set_ylabel("mean return")
     fig.legend(loc="upper left", fontsize=8)
-    ax.set_title(title, fontsize=9)
+    if pour:
+        ax = axes[0, 1]
+        ax.plot(steps, data["amount_error"], "o-", color="tab:red", label="|poured - target|")
+        ax.plot(steps, data["spilled"], "s--", color="tab:purple", label="spilled")
+        ax.set_xlabel("environment steps")
+        ax.set_ylabel("particles (mean per episode)")
+        ax.legend(fontsize=8)
+    fig.suptitle(title, fontsize=9)
     fig.tight_layout()
     png = out / "curve.png"
     fig.savefig(png, dpi=110)

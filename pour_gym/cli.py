@@ -19,6 +19,7 @@ from pour_gym.stdio import redirect_stdout_fd
 from pour_gym.texttable import text_table
 
 Output = tuple[object, Callable[[], str]]
+POUR_ENV = "PourGym/Pour-v0"  # what evaluate runs when neither the model nor --env says
 """What a command returns: the JSON document and a function that formats it as text."""
 
 
@@ -327,10 +328,11 @@ def cmd_evaluate(args: argparse.Namespace) -> Output:
     env_kwargs: dict = {}
     trained: list[str] = []
     if args.policy == "scripted" or args.policy.endswith(".json"):
+        args.env = args.env or POUR_ENV
         from pour_gym.agents.scripted import ScriptedPourPolicy
         from pour_gym.agents.search import load_search
 
-        if args.env != "PourGym/Pour-v0":
+        if args.env != POUR_ENV:
             raise InputError("the scripted policy pours: use --env PourGym/Pour-v0")
         if args.policy == "scripted":
             policy = ScriptedPourPolicy()
@@ -342,6 +344,7 @@ def cmd_evaluate(args: argparse.Namespace) -> Output:
         from pour_gym.agents.training import load_run
 
         run = load_run(args.policy, args.algo)
+        args.env = args.env or run.config.get("env") or POUR_ENV
         if run.config.get("env") and run.config["env"] != args.env:
             raise InputError(f"the model was trained on {run.config['env']}, not {args.env}")
         policy = sb3_policy(run)
@@ -523,8 +526,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--objects", help="split or comma-separated containers (default: all nine)")
 
     p = add("evaluate", cmd_evaluate, "success, amount error and spill per container")
-    p.add_argument("policy", help="an SB3 model.zip from train.py, 'scripted', or a search.json")
-    p.add_argument("--env", default="PourGym/Pour-v0")
+    p.add_argument(
+        "policy",
+        help="an SB3 model.zip from train.py, the name of a shipped model (e.g. "
+        "pour-v0-red-cup-features), 'scripted', or a search.json",
+    )
+    p.add_argument("--env", help="environment id (default: the model's, or Pour-v0)")
     p.add_argument("--objects", default="all", help="split or comma-separated containers")
     p.add_argument("--episodes", type=int, default=5, help="episodes per container")
     p.add_argument("--seed", type=int, default=10_000, help="seed of the first episode")

@@ -16,6 +16,11 @@ from pour_gym.errors import InputError
 ROOT = Path(__file__).resolve().parents[1]
 
 
+def train_command(out: Path, *options: str) -> list[str]:
+    """``python train.py OPTIONS --out OUT --json``."""
+    return [sys.executable, str(ROOT / "train.py"), *options, "--out", str(out), "--json"]
+
+
 def test_hyperparameters_cover_every_env_and_algo():
     from pour_gym.envs import ENV_IDS
 
@@ -29,17 +34,14 @@ def test_hyperparameters_cover_every_env_and_algo():
 @pytest.mark.slow
 def test_train_py_trains_checkpoints_resumes_and_evaluates(tmp_path):
     out = tmp_path / "run"
-    cmd = [
-        sys.executable,
-        str(ROOT / "train.py"),
+    cmd = train_command(
+        out,
         "--env", "PourGym/TiltPour-v0",
         "--algo", "ppo",
         "--timesteps", "300",
         "--eval-objects", "red_cup,standard_cup",
         "--eval-episodes", "3",
-        "--out", str(out),
-        "--json",
-    ]  # fmt: skip
+    )  # fmt: skip
     first = subprocess.run(cmd, capture_output=True, text=True, check=True)
     doc = json.loads(first.stdout)
     assert [r["object"] for r in doc["rows"]] == ["red_cup", "standard_cup"]
@@ -62,9 +64,7 @@ def test_pour_recipe_trains_and_its_model_evaluates_on_a_user_mesh(tmp_path):
     from pour_gym.objects.user_meshes import thin_walled_cup
 
     out = tmp_path / "pour"
-    cmd = [
-        sys.executable,
-        str(ROOT / "train.py"),
+    options = (
         "--env", "PourGym/Pour-v0",
         "--algo", "tqc",
         "--objects", "red_cup",
@@ -75,15 +75,25 @@ def test_pour_recipe_trains_and_its_model_evaluates_on_a_user_mesh(tmp_path):
         "--curve-episodes", "1",
         "--set", "learning_starts=100",
         "--set", "batch_size=32",
-        "--out", str(out),
-        "--json",
-    ]  # fmt: skip
+    )  # fmt: skip
+    cmd = train_command(out, *options)
     done = subprocess.run(cmd, capture_output=True, text=True, check=True)
     assert json.loads(done.stdout)["rows"][0]["object"] == "red_cup"
     for name in ("model.zip", "config.json", "vecnormalize.pkl", "curve.csv", "curve.png"):
         assert (out / name).is_file(), name
     config = json.loads((out / "config.json").read_text())
     assert config["algo"] == "tqc" and config["n_envs"] == 2
+    # Same seed, same machine: the same learning curve and the same network, bit for bit
+    # (workers on one fluid thread each, torch on one thread).
+    again = tmp_path / "again"
+    subprocess.run(train_command(again, *options), capture_output=True, text=True, check=True)
+    assert (again / "curve.csv").read_text() == (out / "curve.csv").read_text()
+    from pour_gym.agents.training import load_run
+
+    first, second = load_run(out / "model.zip"), load_run(again / "model.zip")
+    weights = first.model.policy.state_dict(), second.model.policy.state_dict()
+    for name, tensor in weights[0].items():
+        assert np.array_equal(tensor.numpy(), weights[1][name].numpy()), name
     assert config["env_kwargs"]["tilt_control"] == "angle"
     mesh = tmp_path / "thin.obj"
     thin_walled_cup().export(mesh)
