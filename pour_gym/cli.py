@@ -19,8 +19,8 @@ from pour_gym.stdio import redirect_stdout_fd
 from pour_gym.texttable import text_table
 
 Output = tuple[object, Callable[[], str]]
-POUR_ENV = "PourGym/Pour-v0"  # what evaluate runs when neither the model nor --env says
 """What a command returns: the JSON document and a function that formats it as text."""
+POUR_ENV = "PourGym/Pour-v0"  # what evaluate runs when neither the model nor --env says
 
 
 def cmd_objects(args: argparse.Namespace) -> Output:

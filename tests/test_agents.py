@@ -1,6 +1,7 @@
 """train.py, evaluation and policy search at tiny sizes: outputs exist and make sense."""
 
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -77,7 +78,23 @@ def test_pour_recipe_trains_and_its_model_evaluates_on_a_user_mesh(tmp_path):
         "--set", "batch_size=32",
     )  # fmt: skip
     cmd = train_command(out, *options)
-    done = subprocess.run(cmd, capture_output=True, text=True, check=True)
+    # The subprocesses keep their compiled fluid kernels to themselves: a kernel this test
+    # process loads from numba's cache gives a deep column 3.04 % density error where the
+    # same kernel compiled here gives under 3 % (found this session, not yet understood),
+    # and the fluid tests below compile theirs in this process.
+    # All of this test's processes load the same kernels, compiled once beforehand (a
+    # compiled and a loaded kernel differ, as above).
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba")}
+    warm = (
+        "import numpy as np, gymnasium as gym, pour_gym\n"
+        "for threads in (1, 2):\n"
+        "    e = gym.make('PourGym/Pour-v0', objects='red_cup', num_threads=threads)\n"
+        "    e.reset(seed=0)\n"
+        "    e.step(np.zeros(4, np.float32))\n"
+        "    e.close()\n"
+    )
+    subprocess.run([sys.executable, "-c", warm], capture_output=True, check=True, env=env)
+    done = subprocess.run(cmd, capture_output=True, text=True, check=True, env=env)
     assert json.loads(done.stdout)["rows"][0]["object"] == "red_cup"
     for name in ("model.zip", "config.json", "vecnormalize.pkl", "curve.csv", "curve.png"):
         assert (out / name).is_file(), name
@@ -86,7 +103,9 @@ def test_pour_recipe_trains_and_its_model_evaluates_on_a_user_mesh(tmp_path):
     # Same seed, same machine: the same learning curve and the same network, bit for bit
     # (workers on one fluid thread each, torch on one thread).
     again = tmp_path / "again"
-    subprocess.run(train_command(again, *options), capture_output=True, text=True, check=True)
+    subprocess.run(
+        train_command(again, *options), capture_output=True, text=True, check=True, env=env
+    )
     assert (again / "curve.csv").read_text() == (out / "curve.csv").read_text()
     from pour_gym.agents.training import load_run
 
@@ -101,11 +120,13 @@ def test_pour_recipe_trains_and_its_model_evaluates_on_a_user_mesh(tmp_path):
     evaluated = subprocess.run(
         [*cli, "evaluate", str(out / "model.zip"), "--objects", str(mesh), "--episodes", "1",
          "--json"],
-        capture_output=True, text=True, check=True,
+        capture_output=True, text=True, check=True, env=env,
     )  # fmt: skip
     row = json.loads(evaluated.stdout)["rows"][0]
     assert row["object"] == str(mesh) and not row["trained_on"]
-    missing = subprocess.run([*cli, "evaluate", "no-such-model"], capture_output=True, text=True)
+    missing = subprocess.run(
+        [*cli, "evaluate", "no-such-model"], capture_output=True, text=True, env=env
+    )
     assert missing.returncode == 2 and "shipped model" in missing.stderr
 
 
