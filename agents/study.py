@@ -97,11 +97,8 @@ def pour_matrix(run_dir: Path, episodes: int = 2, objects: tuple[str, ...] | Non
         sb3_policy(run),
         POUR,
         episodes=episodes,
-        env_kwargs={
-            "obs_mode": run.config.get("obs_mode", "features"),
-            **run.config.get("env_kwargs", {}),
-        },
-        trained_on=run.config.get("objects", "train").split(","),
+        env_kwargs=run.env_kwargs(),
+        trained_on=run.trained_on(),
         source_objects=objects,
         target_objects=objects,
     )

@@ -168,6 +168,17 @@ class Run:
     config: dict
     normaliser: object | None = None
 
+    def env_kwargs(self) -> dict:
+        """The environment arguments the model acts in (its observation mode, its run's)."""
+        return {
+            "obs_mode": self.config.get("obs_mode", "features"),
+            **self.config.get("env_kwargs", {}),
+        }
+
+    def trained_on(self) -> list[str]:
+        """The containers the model was trained on."""
+        return list(expand_containers(self.config.get("objects") or "train"))
+
     def normalise(self, obs: np.ndarray) -> np.ndarray:
         """An observation as the model saw them in training."""
         if self.normaliser is None:

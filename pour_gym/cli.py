@@ -348,11 +348,8 @@ def cmd_evaluate(args: argparse.Namespace) -> Output:
         if run.config.get("env") and run.config["env"] != args.env:
             raise InputError(f"the model was trained on {run.config['env']}, not {args.env}")
         policy = sb3_policy(run)
-        env_kwargs = {
-            "obs_mode": run.config.get("obs_mode", "features"),
-            **run.config.get("env_kwargs", {}),
-        }
-        trained = list(expand_containers(run.config.get("objects") or "train"))
+        env_kwargs = run.env_kwargs()
+        trained = run.trained_on()
     result = evaluate_policy(
         policy,
         args.env,
