@@ -1,6 +1,6 @@
 """Training curricula: episodes that start part of the way through the task.
 
-The task stays the environment's own; a curriculum only changes where some training
+The task stays the environment's own; a curriculum only changes how some training
 episodes start, through the environment's documented reset options. Evaluation always
 starts as the environment does.
 """
@@ -11,31 +11,56 @@ import gymnasium as gym
 import numpy as np
 
 
-class StartNearTarget(gym.Wrapper):
-    """Pour-v0: a share of the episodes start with the lip over the target's opening.
+class TrainingStarts(gym.Wrapper):
+    """Pour-v0: training episodes that start over the target, or with less left to hold back.
 
-    A learner must first find out that tilting over the target pours into it; from the
-    default start 20 cm away it seldom tilts far enough at the right place by chance.
-    Episodes that start over the target (``reset(options={"near_target": True})``) let
-    it learn the pour, and the others the approach.
+    Two things a learner seldom finds by chance from the default start:
+
+    - that tilting over the target pours into it: from the default start 20 cm away it
+      seldom tilts far enough at the right place. A ``near_target`` share of the episodes
+      start with the lip over the target's opening (``reset(options={"near_target":
+      True})``), and the others teach the approach.
+    - that it must stop: with the default fill (the target amount T plus 100 particles) a
+      learner that pours everything earns most of the reward and never sees a success.
+      With ``fill_margin=(lo, hi)`` each episode fills T plus a margin drawn uniformly
+      from ``lo``-``hi`` particles (``reset(options={"fill_margin": m})``): near 0,
+      pouring everything and setting the source upright is a success, and because the
+      margin varies, only "poured close to T", not "the source is nearly empty", tells
+      when to stop.
 
     Args:
         env: a Pour-v0 environment (possibly wrapped).
-        share: the fraction of episodes that start over the target.
+        near_target: the fraction of episodes that start over the target.
+        fill_margin: (lo, hi) particles of fill beyond T, or None for the env's own fill.
     """
 
-    def __init__(self, env: gym.Env, share: float):
+    def __init__(
+        self,
+        env: gym.Env,
+        near_target: float = 0.0,
+        fill_margin: tuple[int, int] | None = None,
+    ):
         super().__init__(env)
-        if not 0.0 <= share <= 1.0:
-            raise ValueError(f"share must lie in [0, 1], not {share}")
-        self.share = float(share)
+        if not 0.0 <= near_target <= 1.0:
+            raise ValueError(f"near_target must lie in [0, 1], not {near_target}")
+        if fill_margin is not None:
+            lo, hi = (int(m) for m in fill_margin)
+            if not 0 <= lo <= hi:
+                raise ValueError(f"fill_margin must be (lo, hi), 0 <= lo <= hi, not {fill_margin}")
+            fill_margin = (lo, hi)
+        self.near_target = float(near_target)
+        self.fill_margin = fill_margin
         self._rng = np.random.default_rng()
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
-        """Reset, starting over the target in a ``share`` of the episodes."""
+        """Reset, drawing this episode's start (options given by the caller win)."""
         if seed is not None:
             self._rng = np.random.default_rng(seed)
         options = dict(options or {})
-        if "near_target" not in options:
-            options["near_target"] = bool(self._rng.random() < self.share)
+        # Both draws are taken every episode, so that one setting does not shift the other's.
+        near = bool(self._rng.random() < self.near_target)
+        options.setdefault("near_target", near)
+        if self.fill_margin is not None:
+            margin = int(self._rng.integers(self.fill_margin[0], self.fill_margin[1] + 1))
+            options.setdefault("fill_margin", margin)
         return self.env.reset(seed=seed, options=options)

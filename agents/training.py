@@ -377,26 +377,40 @@ def plot_curve(out: Path, title: str) -> Path | None:
     return png
 
 
+def recipe_curriculum(params: dict) -> dict | None:
+    """Take the curriculum keys out of a recipe's parameters.
+
+    ``start_near_target``: the share of episodes that start over the target;
+    ``fill_margin``: [lo, hi] particles of fill beyond the target amount.
+    """
+    curriculum = {}
+    if "start_near_target" in params:
+        curriculum["near_target"] = float(params.pop("start_near_target"))
+    if "fill_margin" in params:
+        curriculum["fill_margin"] = [int(m) for m in params.pop("fill_margin")]
+    return curriculum or None
+
+
 def make_training_env(
     config: TrainConfig,
     n_envs: int,
     normalize: dict | None,
     env_kwargs: dict,
-    start_near_target: float = 0.0,
+    curriculum: dict | None = None,
 ):
     """The vector env: subprocess workers when ``n_envs > 1``, normalised if asked.
 
-    ``start_near_target``: the share of Pour-v0 training episodes that start with the lip
-    over the target (:class:`~pour_gym.agents.curriculum.StartNearTarget`).
+    ``curriculum``: arguments of :class:`~pour_gym.agents.curriculum.TrainingStarts`
+    (``near_target``, ``fill_margin``) for Pour-v0's training episodes, or None.
     """
     from stable_baselines3.common.env_util import make_vec_env
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNormalize
 
-    from pour_gym.agents.curriculum import StartNearTarget
+    from pour_gym.agents.curriculum import TrainingStarts
 
     wrap = {}
-    if start_near_target > 0.0:
-        wrap = {"wrapper_class": StartNearTarget, "wrapper_kwargs": {"share": start_near_target}}
+    if curriculum:
+        wrap = {"wrapper_class": TrainingStarts, "wrapper_kwargs": dict(curriculum)}
     if n_envs > 1:
         venv = make_vec_env(
             config.env, n_envs=n_envs, seed=config.seed, env_kwargs=env_kwargs,
@@ -437,7 +451,7 @@ def train(config: TrainConfig) -> dict:
     # The recipe's environment arguments (reward weights, ...); the run's own win.
     recipe_env = params.pop("env_kwargs", {}) or {}
     torch_threads = int(params.pop("torch_threads", 1))
-    start_near_target = float(params.pop("start_near_target", 0.0))
+    curriculum = recipe_curriculum(params)
     train_objects = list(expand_containers(config.objects))
     out = config.run_dir()
     ckpt_dir = out / "checkpoints"
@@ -451,7 +465,7 @@ def train(config: TrainConfig) -> dict:
                 "n_envs": n_envs,
                 "policy": policy,
                 "normalize": normalize,
-                "start_near_target": start_near_target,
+                "curriculum": curriculum,
                 # What the environments were made with (recipe and run): evaluate uses it.
                 "env_kwargs": {**recipe_env, **config.env_kwargs},
             },
@@ -468,7 +482,7 @@ def train(config: TrainConfig) -> dict:
         **recipe_env,
         **config.env_kwargs,
     }
-    venv = make_training_env(config, n_envs, normalize, env_kwargs, start_near_target)
+    venv = make_training_env(config, n_envs, normalize, env_kwargs, curriculum)
     checkpoint, done = _latest_checkpoint(ckpt_dir)
     if checkpoint is not None:
         stats = ckpt_dir / f"vecnormalize_{done}_steps.pkl"

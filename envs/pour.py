@@ -160,9 +160,11 @@ class PourEnv(PourGymEnv):
     | ``render_mode`` | str or None | None | ``"rgb_array"`` or ``"human"`` |
 
     ``reset(options=...)`` accepts ``source``, ``target`` (names or mesh paths),
-    ``target_amount`` (particles) and ``near_target`` (true: the lip starts over the near
+    ``target_amount`` (particles), ``near_target`` (true: the lip starts over the near
     half of the target's opening, 0.1-0.9 rim radii before its centre towards the source
-    and within 0.4 to the sides, instead of at the origin; a start for curricula).
+    and within 0.4 to the sides, instead of at the origin; a start for curricula) and
+    ``fill_margin`` (particles: this episode's fill is T plus this margin instead of T +
+    100; for curricula, see :class:`pour_gym.agents.curriculum.TrainingStarts`).
 
     ## Version History
     * v0 (this release): the fluid takes substeps by the CFL bound and puts back particles
@@ -174,7 +176,7 @@ class PourEnv(PourGymEnv):
       :mod:`pour_gym.features`; it was the held lip's height); feature ``in_source``
       added; reward weights and the ``time``, ``aim`` and ``upright`` shaping terms are
       arguments (with ``control`` and ``tilt``); ``num_threads``, ``tilt_control`` and the reset
-      option ``near_target`` added.
+      options ``near_target`` and ``fill_margin`` added.
     * v0 (first release): 1000 particles, six 1/60 s fluid steps per step.
     """
 
@@ -291,7 +293,9 @@ class PourEnv(PourGymEnv):
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         """Start an episode; ``options`` may fix ``source``, ``target``, ``target_amount``."""
         super().reset(seed=seed)
-        options = self._options(options, {"source", "target", "target_amount", "near_target"})
+        options = self._options(
+            options, {"source", "target", "target_amount", "near_target", "fill_margin"}
+        )
         source = self._choose(self.sources, options.get("source"))
         target = self._choose(self.targets, options.get("target"))
         placed = self._place({"source": source, "target": target})
@@ -329,6 +333,15 @@ class PourEnv(PourGymEnv):
         if amount is None:
             amount = int(rng.integers(lo, hi + 1))
         amount = int(amount)
+        margin = options.get("fill_margin")
+        if margin is not None:
+            if fixed_fill is not None or int(margin) < 0:
+                raise ValueError(
+                    "the reset option fill_margin must be a count of particles >= 0, and only "
+                    f"applies when source_particles is None (got {margin} with "
+                    f"source_particles={fixed_fill})"
+                )
+            fixed_fill = amount + int(margin)
         fill = fixed_fill if fixed_fill is not None else amount + FILL_MARGIN
         self.fill = min(fill, capacity_s)
         if not 1 <= amount <= self.fill:

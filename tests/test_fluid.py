@@ -3,6 +3,10 @@
 All at the default parameters (4 over-relaxed iterations, substeps of at most 1/240 s).
 """
 
+import os
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 import trimesh
@@ -87,24 +91,28 @@ def test_settled_column_height_and_rest(tall_sdf, height):
     pts = pts[np.lexsort((pts[:, 1], pts[:, 0], pts[:, 2]))][:count]
     fluid = PBFluid(pts, cfg)
     fluid.add_collider(tall_sdf)
-    energies = []
-    for _ in range(25):  # 2.5 s
+    energies, density_errors, bulk_sizes = [], [], []
+    for k in range(25):  # 2.5 s
         fluid.step(0.1)
         energies.append(0.5 * np.mean(np.sum(fluid.v**2, axis=1)))
+        if k >= 20:
+            # Density error in the bulk (particles a kernel radius from the free surface
+            # and walls), over the last 0.5 s: one snapshot jitters by +-0.003.
+            x = fluid.x
+            bulk = (
+                (np.hypot(x[:, 0], x[:, 1]) < R_IN - fluid.h - cfg.radius)
+                & (x[:, 2] > BASE + fluid.h + cfg.radius)
+                & (x[:, 2] < x[:, 2].max() - fluid.h)
+            )
+            bulk_sizes.append(bulk.sum())
+            density_errors.append(np.abs(fluid.relative_density()[bulk] - 1.0).mean())
     x = fluid.x
     assert len(x) == count and x[:, 2].max() < TALL  # nothing left the cup
     measured = 2.0 * (x[:, 2].mean() - BASE)
     assert measured == pytest.approx(height, rel=0.05)
-    # Density error in the bulk (particles a kernel radius from the free surface and walls;
-    # a shallow column has no bulk to speak of).
-    bulk = (
-        (np.hypot(x[:, 0], x[:, 1]) < R_IN - fluid.h - cfg.radius)
-        & (x[:, 2] > BASE + fluid.h + cfg.radius)
-        & (x[:, 2] < x[:, 2].max() - fluid.h)
-    )
-    if height > 0.05:
-        assert bulk.sum() > 200
-        assert np.abs(fluid.relative_density()[bulk] - 1.0).mean() < 0.03
+    if height > 0.05:  # a shallow column has no bulk to speak of
+        assert min(bulk_sizes) > 200
+        assert np.mean(density_errors) < 0.03
     # The fluid comes to rest, up to a jitter of a few cm/s (rms speed over the last 0.5 s).
     assert np.sqrt(2.0 * np.mean(energies[-5:])) < 0.12
 
@@ -129,16 +137,52 @@ def test_rotating_cup_loses_nothing_and_nothing_enters_the_wall(cup_sdf):
     assert fluid.x[:, 2].min() >= cfg.radius - 1e-12  # and none below the table
 
 
-def test_same_start_same_particles_bit_for_bit(cup_sdf):
+@pytest.mark.slow
+def test_a_kernel_loaded_from_the_cache_computes_what_it_computed_when_compiled(tmp_path):
+    """Numba's on-disk cache changes no number: a process that compiles the kernel and one
+    that loads it give the same particles, bit for bit (with LLVM free to reassociate
+    sums, they did not; see ``pour_gym.fluid.sdf.FASTMATH``)."""
+    script = (
+        "import hashlib, numpy as np\n"
+        "from pour_gym.fluid import PBFConfig, PBFluid, build_sdf\n"
+        "from pour_gym.objects import cylinder_cup\n"
+        f"cup = cylinder_cup({R_IN}, {HEIGHT}, {WALL}, {BASE})\n"
+        "g = np.arange(-0.03, 0.03, 0.005)\n"
+        f"z = np.arange({BASE} + 0.0025, 0.05, 0.005)\n"
+        "pts = np.stack(np.meshgrid(g, g, z, indexing='ij'), -1).reshape(-1, 3)\n"
+        "fluid = PBFluid(pts, PBFConfig(), num_threads=1)\n"
+        "fluid.add_collider(build_sdf(cup, spacing=0.002))\n"
+        "for _ in range(10):\n"
+        "    fluid.step(0.1)\n"
+        "print(hashlib.sha256(fluid.x.tobytes()).hexdigest())\n"
+    )
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path)}
+
     def run():
+        done = subprocess.run(
+            [sys.executable, "-c", script], capture_output=True, text=True, check=True, env=env
+        )
+        return done.stdout.strip()
+
+    compiled = run()
+    assert list(tmp_path.rglob("*.nbi")), "the first process wrote no cache"
+    assert run() == compiled
+
+
+def test_same_start_same_particles_bit_for_bit(cup_sdf):
+    """The same start gives the same particles, and so do the serial and parallel builds."""
+
+    def run(threads):
         cfg = PBFConfig()
-        fluid = PBFluid(column(cfg.spacing, 0.03), cfg)
+        fluid = PBFluid(column(cfg.spacing, 0.03), cfg, num_threads=threads)
         fluid.add_collider(cup_sdf)
         for _ in range(20):
             fluid.step(1 / 60)
         return fluid.x.copy()
 
-    assert np.array_equal(run(), run())
+    first = run(2)
+    assert np.array_equal(first, run(2))
+    assert np.array_equal(first, run(1))
 
 
 def test_divergence_is_an_error(cup_sdf):

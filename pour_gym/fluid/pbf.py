@@ -29,7 +29,7 @@ from dataclasses import asdict, dataclass
 import numba as nb
 import numpy as np
 
-from pour_gym.fluid.sdf import SignedDistanceField, trilinear
+from pour_gym.fluid.sdf import FASTMATH, SignedDistanceField, trilinear
 
 GRAVITY = np.array([0.0, 0.0, -9.81])
 # Water poured from a table-top cup never moves this fast; a particle that does has diverged.
@@ -344,7 +344,7 @@ def _sort_cells(p, h, max_cells, keys, order, start, sorted_p, grid):
     grid[4], grid[5], grid[6] = nx, ny, nz
 
 
-@nb.njit(cache=True, fastmath=True)
+@nb.njit(cache=True, fastmath=FASTMATH)
 def _neighbours_of(i, p, h2, grid, order, start, sorted_p, nbr, nbr_count):
     """Particle i's neighbours within sqrt(h2), from the nine column runs around it."""
     lx, ly, lz, cell = grid[0], grid[1], grid[2], grid[3]
@@ -373,7 +373,7 @@ def _neighbours_of(i, p, h2, grid, order, start, sorted_p, nbr, nbr_count):
     nbr_count[i] = c
 
 
-@nb.njit(cache=True, fastmath=True)
+@nb.njit(cache=True, fastmath=FASTMATH)
 def _first_entry(values, offs, dims, origins, spacings, k, sx, sy, sz, qx, qy, qz, radius):
     """Where a straight path from s to q first comes within ``radius`` of collider k's wall.
 
@@ -410,7 +410,7 @@ def _first_entry(values, offs, dims, origins, spacings, k, sx, sy, sz, qx, qy, q
     return lo
 
 
-@nb.njit(cache=True, fastmath=True)
+@nb.njit(cache=True, fastmath=FASTMATH)
 def _collide_one(p, prev, i, k, radius, values, offs, dims, origins, spacings, rot_s, tr_s,
                  rot_e, tr_e):  # fmt: skip
     """Push particle i out of collider k's material; 1 if it had tunnelled into a wall.
@@ -484,7 +484,7 @@ def _collide_one(p, prev, i, k, radius, values, offs, dims, origins, spacings, r
     return tunnelled
 
 
-@nb.njit(cache=True, fastmath=True)
+@nb.njit(cache=True, fastmath=FASTMATH)
 def _wall_term(i, p, wall, floor, has_floor, h, wall_table, values, offs, dims, origins,
                spacings, rot_e, tr_e):  # fmt: skip
     """The density the nearest wall stands in for at particle i, and its gradient.
@@ -781,7 +781,7 @@ def _noalias_option() -> dict:
 
 def _builds(passes: tuple, driver: types.FunctionType) -> dict:
     """The driver compiled twice: calling serial passes, and calling parallel builds."""
-    fast = {"cache": True, "fastmath": True, **_noalias_option()}
+    fast = {"cache": True, "fastmath": FASTMATH, **_noalias_option()}
     serial = dict(driver.__globals__)
     parallel = dict(driver.__globals__)
     for f in passes:
