@@ -224,7 +224,7 @@ def cmd_bench(args: argparse.Namespace) -> Output:
         sizes = [int(s) for s in (args.sizes or "300,1000,2000,4000,16000").split(",")]
         bullet = [int(s) for s in args.bullet_sizes.split(",") if s]
         result = bench_fluid(sizes, bullet, repeats=args.repeats)
-        doc = {k: result[k] for k in ("pbf", "bullet", "ratio_at_2000")}
+        doc = {k: result[k] for k in ("pbf", "bullet", "ratio_at_2000", "realtime")}
         return (doc, lambda: fluid_table(result))
     if args.what == "envs":
         result = bench_envs(repeats=args.repeats)
