@@ -12,14 +12,13 @@ where fluid would spill must not happen).
 from __future__ import annotations
 
 import json
-import sys
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from tqdm import tqdm
 
 from pour_gym.assets import SPLITS
+from pour_gym.cluster import map_tasks, ray_session
 from pour_gym.errors import InputError
 from pour_gym.warp.classifiers import LogisticRegression
 
@@ -29,6 +28,9 @@ EXPERIMENTS = {
 }
 TRAIN_OBJECT = "red_cup"
 MAX_FPR = 0.01
+# Episodes per task: small enough for a progress bar that moves and for the tasks to spread
+# over workers, large enough that making the env is a small part of a task.
+CHUNK = 20
 
 
 @dataclass
@@ -55,7 +57,39 @@ class Dataset:
         return path
 
 
-def collect(experiment: str, objects: tuple[str, ...], episodes: int, seed: int = 0) -> Dataset:
+def collect_chunk(task: dict) -> tuple[list, list]:
+    """Episodes of one container in an env of their own: features and labels.
+
+    A function of plain data, so that it runs the same here or as a Ray task.
+
+    Args:
+        task: ``env_id``, ``object`` (a container) and ``seeds`` (one episode each).
+    """
+    import gymnasium as gym
+
+    import pour_gym  # noqa: F401 - registers the environments
+
+    env = gym.make(task["env_id"], objects=[task["object"]])
+    feats, labels = [], []
+    try:
+        for s in task["seeds"]:
+            env.reset(seed=s)
+            _, _, _, _, info = env.step(np.zeros(1, dtype=np.float32))
+            feats.append(info["features"])
+            labels.append(info["label"])
+    finally:
+        env.close()
+    return feats, labels
+
+
+def collect(
+    experiment: str,
+    objects: tuple[str, ...],
+    episodes: int,
+    seed: int = 0,
+    address: str | None = None,
+    chunk: int = CHUNK,
+) -> Dataset:
     """Run the experiment's environment ``episodes`` times per object.
 
     Args:
@@ -63,28 +97,30 @@ def collect(experiment: str, objects: tuple[str, ...], episodes: int, seed: int 
         objects: containers (catalogue names or mesh paths).
         episodes: episodes per object.
         seed: seed of the first episode (each episode has its own).
+        address: run chunks of episodes as Ray tasks there (``local``, ``auto`` or
+            ``HOST:PORT``, see :mod:`pour_gym.cluster`); None: here, one after another.
+            The dataset is the same either way.
+        chunk: episodes per task.
 
     Returns:
         The dataset, in the order of the objects.
     """
-    import gymnasium as gym
-
-    import pour_gym  # noqa: F401 - registers the environments
-
     env_id, _ = _spec(experiment)
-    feats, labels, names = [], [], []
-    bar = tqdm(total=len(objects) * episodes, desc=f"experiment {experiment}", file=sys.stderr)
-    for k, name in enumerate(objects):
-        env = gym.make(env_id, objects=[name])
-        for ep in range(episodes):
-            env.reset(seed=seed + k * episodes + ep)
-            _, _, _, _, info = env.step(np.zeros(1, dtype=np.float32))
-            feats.append(info["features"])
-            labels.append(info["label"])
-            names.append(name)
-            bar.update()
-        env.close()
-    bar.close()
+    tasks = [
+        {
+            "env_id": env_id,
+            "object": name,
+            "seeds": [seed + k * episodes + ep for ep in range(lo, min(lo + chunk, episodes))],
+        }
+        for k, name in enumerate(objects)
+        for lo in range(0, episodes, chunk)
+    ]
+    desc = f"experiment {experiment} ({chunk} episodes a task)"
+    with ray_session(address) as ray:
+        parts = map_tasks(collect_chunk, tasks, ray, desc=desc)
+    feats = [f for part, _ in parts for f in part]
+    labels = [y for _, part in parts for y in part]
+    names = [t["object"] for t in tasks for _ in t["seeds"]]
     return Dataset(np.asarray(feats, dtype=float), np.asarray(labels, bool), np.asarray(names))
 
 
@@ -193,6 +229,7 @@ def run_experiment(
     seed: int = 0,
     out: str | Path = "experiments",
     objects: tuple[str, ...] | None = None,
+    address: str | None = None,
 ) -> dict:
     """Collect, train on the red cup, evaluate, and write dataset, PNG, JSON and table.
 
@@ -202,6 +239,7 @@ def run_experiment(
         seed: first seed.
         out: output folder.
         objects: containers (default: the thesis's nine objects).
+        address: collect on Ray there (see :func:`collect`).
 
     Returns:
         The JSON document (``auc``, ``tpr_at_fpr_0.01``, ...) and the written paths.
@@ -210,7 +248,7 @@ def run_experiment(
     if episodes < 10:
         raise InputError(f"--episodes must be at least 10 per object, not {episodes}")
     objects = objects or SPLITS["all"]
-    data = collect(experiment, objects, episodes, seed)
+    data = collect(experiment, objects, episodes, seed, address=address)
     result = evaluate(data)
     out = Path(out)
     title = {

@@ -23,6 +23,7 @@ from tqdm import tqdm
 from pour_gym.agents.rollout import rollout
 from pour_gym.agents.scripted import ScriptedPourPolicy
 from pour_gym.assets import expand_containers
+from pour_gym.cluster import map_tasks, ray_session
 from pour_gym.errors import InputError
 
 # Searched parameters: name, lower bound, upper bound (CMA-ES works in [0, 1] per axis).
@@ -99,6 +100,36 @@ def score(results: list[dict], objective: str) -> float:
     return -float(np.mean(errors))
 
 
+def score_candidate(task: dict) -> float:
+    """The score of one candidate over its episodes, in an env of its own.
+
+    A function of plain data, so that it runs the same here or as a Ray task.
+
+    Args:
+        task: ``u`` (the candidate in the unit cube; None: the starting parameters),
+            ``env_kwargs``, ``seeds``,
+            ``options`` (the resets'), ``objective`` and ``target_amount``.
+    """
+    import gymnasium as gym
+
+    import pour_gym  # noqa: F401 - registers the environments
+
+    env = gym.make("PourGym/Pour-v0", **task["env_kwargs"])
+    amount = task["target_amount"]
+    u = task["u"]
+    policy = (
+        ScriptedPourPolicy(**START, amount=amount)
+        if u is None
+        else to_policy(np.asarray(u), amount)
+    )
+    try:
+        return score(
+            episode_returns(policy, env, task["seeds"], task["options"]), task["objective"]
+        )
+    finally:
+        env.close()
+
+
 def search(
     objects="train",
     generations: int = 6,
@@ -110,6 +141,7 @@ def search(
     objective: str = "return",
     target_amount: int | None = None,
     target_objects=None,
+    address: str | None = None,
 ) -> dict:
     """CMA-ES over the scripted policy's parameters on Pour-v0.
 
@@ -125,15 +157,15 @@ def search(
             particles, spills twice).
         target_amount: pour this many particles in every episode, and tell the policy.
         target_objects: the containers to pour into (default: ``objects``).
+        address: evaluate each generation's candidates as Ray tasks there (``local``,
+            ``auto`` or ``HOST:PORT``, see :mod:`pour_gym.cluster`); None: one after
+            another here. The result is the same either way.
 
     Returns:
         ``{"best": {param: value}, "best_score": x, "start_score": x, "objective",
         "history": [...]}``.
     """
     import cma
-    import gymnasium as gym
-
-    import pour_gym  # noqa: F401 - registers the environments
 
     if objective not in OBJECTIVES:
         raise InputError(f"objective must be one of {OBJECTIVES}, not {objective!r}")
@@ -147,35 +179,36 @@ def search(
     kwargs = dict(env_kwargs or {})
     if target_amount is not None:  # any amount the fill allows
         kwargs.setdefault("amount_range", (1, 1000))
-    env = gym.make("PourGym/Pour-v0", source_objects=sources, target_objects=targets, **kwargs)
-    options = {"target_amount": int(target_amount)} if target_amount is not None else None
     seeds = [seed * 1000 + k for k in range(episodes)]
-
-    def evaluate(policy: ScriptedPourPolicy) -> float:
-        return score(episode_returns(policy, env, seeds, options), objective)
-
+    job = {
+        "env_kwargs": {"source_objects": sources, "target_objects": targets, **kwargs},
+        "seeds": seeds,
+        "options": {"target_amount": int(target_amount)} if target_amount is not None else None,
+        "objective": objective,
+        "target_amount": target_amount,
+    }
     x0 = [(START[n] - lo) / (hi - lo) for n, lo, hi in PARAMETERS]
-    start = evaluate(ScriptedPourPolicy(**START, amount=target_amount))
     es = cma.CMAEvolutionStrategy(
         x0, 0.2, {"bounds": [0.0, 1.0], "popsize": population, "seed": seed + 1, "verbose": -9}
     )
     history = []
-    best_score, best_u = start, np.array(x0)
-    bar = tqdm(total=generations * population, desc="policy search", file=sys.stderr)
-    for g in range(generations):
-        candidates = es.ask()
-        scores = []
-        for u in candidates:
-            scores.append(evaluate(to_policy(u, target_amount)))
-            bar.update()
-            bar.set_postfix(best=f"{max(best_score, *scores):.3f}")
-        es.tell(candidates, [-s for s in scores])  # CMA-ES minimises
-        k = int(np.argmax(scores))
-        if scores[k] > best_score:
-            best_score, best_u = scores[k], np.asarray(candidates[k])
-        history.append({"generation": g, "best": max(scores), "mean": float(np.mean(scores))})
+    bar = tqdm(total=generations * population + 1, desc="policy search", file=sys.stderr)
+    with ray_session(address) as ray:
+        start = map_tasks(score_candidate, [{**job, "u": None}], ray)[0]
+        bar.update()
+        best_score, best_u = start, np.array(x0)
+        for g in range(generations):
+            candidates = es.ask()
+            tasks = [{**job, "u": list(map(float, u))} for u in candidates]
+            scores = map_tasks(score_candidate, tasks, ray)
+            bar.update(len(candidates))
+            es.tell(candidates, [-s for s in scores])  # CMA-ES minimises
+            k = int(np.argmax(scores))
+            if scores[k] > best_score:
+                best_score, best_u = scores[k], np.asarray(candidates[k])
+            bar.set_postfix(best=f"{best_score:.3f}")
+            history.append({"generation": g, "best": max(scores), "mean": float(np.mean(scores))})
     bar.close()
-    env.close()
     best = asdict(to_policy(best_u))
     doc = {
         "sources": sources,

@@ -455,12 +455,22 @@ class PourEnv(PourGymEnv):
         )
 
     def _observation(self) -> np.ndarray:
+        return self.observe(self.obs_mode)
+
+    def observe(self, obs_mode: str) -> np.ndarray:
+        """The current observation in either mode (``"features"`` or ``"state"``).
+
+        ``step`` and ``reset`` return the env's own mode; the other is for callers that need
+        both, e.g. the scripted policy (which reads features) recording demonstrations for
+        a state agent.
+        """
+        self._check_obs_mode(obs_mode)
         c = self._counts
         t = self.target_amount
         gs: ContainerGeometry = self.source.asset.geometry
         gt: ContainerGeometry = self.target.asset.geometry
         v = self.world.particle_volume
-        if self.obs_mode == "features":
+        if obs_mode == "features":
             centre = self.target.to_world(gt.rim_center)
             x = self.world.particles
             s = self.source

@@ -213,10 +213,12 @@ def cmd_bench(args: argparse.Namespace) -> Output:
         bench_envs,
         bench_fluid,
         bench_label,
+        bench_ray,
         bench_reconstruct,
         envs_table,
         fluid_table,
         label_table,
+        ray_table,
         reconstruct_table,
     )
 
@@ -229,6 +231,9 @@ def cmd_bench(args: argparse.Namespace) -> Output:
     if args.what == "envs":
         result = bench_envs(repeats=args.repeats)
         return (result, lambda: envs_table(result))
+    if args.what == "ray":
+        result = bench_ray(repeats=args.repeats)
+        return (result, lambda: ray_table(result))
     if args.what == "label":
         sizes = [int(s) for s in (args.sizes or "5000,10000,20000,40000").split(",")]
         rows = bench_label(sizes, repeats=args.repeats)
@@ -314,7 +319,9 @@ def cmd_experiment(args: argparse.Namespace) -> Output:
         objects = expand_containers(
             args.objects.split(",") if "," in args.objects else args.objects
         )
-    doc = run_experiment(args.which, args.episodes, args.seed, Path(args.out), objects)
+    doc = run_experiment(
+        args.which, args.episodes, args.seed, Path(args.out), objects, address=args.address
+    )
     table = doc.pop("table")
     return (doc, lambda: f"{table}\nwrote {doc['files']['png']} and results_{args.which}.json")
 
@@ -378,6 +385,7 @@ def cmd_search(args: argparse.Namespace) -> Output:
         objective=args.objective,
         target_amount=args.target_amount,
         target_objects=args.target_objects,
+        address=args.address,
     )
     what = "mean return" if doc["objective"] == "return" else "minus the mean error"
     text = (
@@ -386,6 +394,15 @@ def cmd_search(args: argparse.Namespace) -> Output:
         + ", ".join(f"{k}={v:.3g}" for k, v in doc["best"].items())
     )
     return (doc, lambda: text)
+
+
+def cmd_sweep(args: argparse.Namespace) -> Output:
+    """A grid of training runs (Ray Tune with --address)."""
+    from pour_gym.agents.sweep import load_spec, sweep, sweep_table
+
+    _, grid = load_spec(args.spec)
+    doc = sweep(args.spec, args.out, address=args.address)
+    return (doc, lambda: sweep_table(doc, list(grid)))
 
 
 def cmd_poc(args: argparse.Namespace) -> Output:
@@ -417,6 +434,15 @@ def cmd_demo(args: argparse.Namespace) -> Output:
     summary["pour"] = {"info": pour["info"], "video": pour["video"]}
     text = summary.pop("text") + "\n" + pour["text"]
     return (summary, lambda: text)
+
+
+def add_address(p: argparse.ArgumentParser, what: str) -> None:
+    """The ``--address`` option of the commands that can run on Ray."""
+    p.add_argument(
+        "--address",
+        help=f"{what}: 'local' (a Ray instance on this machine), 'auto' (the cluster this "
+        "machine joined) or HOST:PORT (a head node); needs pip install 'pour-gym[ray]'",
+    )
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -487,7 +513,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", help="folder (default: the packaged assets folder)")
 
     p = add("bench", cmd_bench, "benchmarks (medians of repeated runs)")
-    p.add_argument("what", choices=["reconstruct", "label", "fluid", "envs"])
+    p.add_argument("what", choices=["reconstruct", "label", "fluid", "envs", "ray"])
     p.add_argument("--sizes", help="comma-separated sizes (points, target vertices or particles)")
     p.add_argument(
         "--bullet-sizes",
@@ -521,6 +547,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", default="experiments", help="output folder")
     p.add_argument("--objects", help="split or comma-separated containers (default: all nine)")
+    add_address(p, "collect the episodes as Ray tasks")
 
     p = add("evaluate", cmd_evaluate, "success, amount error and spill per container")
     p.add_argument(
@@ -551,6 +578,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--target-amount", type=int, help="pour this many particles every episode")
     p.add_argument("--target-objects", help="containers to pour into (default: --objects)")
+    add_address(p, "evaluate each generation's candidates as Ray tasks")
+
+    p = add("sweep", cmd_sweep, "a grid of train.py runs (Ray Tune trials with --address)")
+    p.add_argument("spec", help="YAML: TrainConfig fields and a grid: of fields to vary")
+    p.add_argument("--out", required=True, help="folder of the trials' run directories")
+    add_address(p, "run the trials on Ray Tune")
 
     p = add("poc", cmd_poc, "the thesis's proof-of-concept pouring policy (Table 6.1)")
     p.add_argument("--target", type=int, default=20, help="particles to pour (0.125 ml each)")

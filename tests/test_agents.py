@@ -107,6 +107,7 @@ def test_pour_recipe_trains_and_its_model_evaluates_on_a_user_mesh(tmp_path):
         "--curve-episodes", "1",
         "--set", "learning_starts=100",
         "--set", "batch_size=32",
+        "--set", "demonstrations={episodes: 2, share: 0.5, bc_steps: 50, bc_weight: 5.0}",
     )  # fmt: skip
     cmd = train_command(out, *options)
     done = subprocess.run(cmd, capture_output=True, text=True, check=True)
@@ -115,6 +116,8 @@ def test_pour_recipe_trains_and_its_model_evaluates_on_a_user_mesh(tmp_path):
         assert (out / name).is_file(), name
     config = json.loads((out / "config.json").read_text())
     assert config["algo"] == "tqc" and config["n_envs"] == 2
+    demos = json.loads((out / "demonstrations.json").read_text())
+    assert demos["episodes_succeeded"] == 2 and demos["transitions"] > 50
     # Same seed, same machine: the same learning curve and the same network, bit for bit
     # (workers on one fluid thread each, torch on one thread).
     again = tmp_path / "again"
@@ -206,3 +209,31 @@ def test_closed_loop_poc_pours_twenty_particles():
         assert 30.0 < row["delta_deg"] < 90.0 and row["duration_s"] > 0.0, row
     with pytest.raises(InputError, match="policy"):
         run_poc(policy="open")
+
+
+def test_keep_best_keeps_the_most_successful_then_the_closest_point(tmp_path):
+    from pour_gym.agents.training import keep_if_best
+
+    class Model:
+        def __init__(self, tag: str):
+            self.tag = tag
+
+        def save(self, path):
+            Path(path).write_text(self.tag)
+
+    best = tmp_path / "best"
+    points = [
+        ("a", {"success": 0.5, "return": 1.0, "amount_error": 30.0}, True),
+        ("b", {"success": 0.5, "return": 2.0, "amount_error": 40.0}, False),  # further off
+        ("c", {"success": 0.5, "return": 0.0, "amount_error": 20.0}, True),  # closer
+        ("d", {"success": 0.33, "return": 3.0, "amount_error": 5.0}, False),  # less success
+        ("e", {"success": 1.0, "return": 0.0, "amount_error": 50.0}, True),
+    ]
+    for tag, point, kept in points:
+        assert keep_if_best(best, point, Model(tag), venv=None) is kept, tag
+    assert (best / "model.zip").read_text() == "e"
+    assert json.loads((best / "point.json").read_text())["success"] == 1.0
+    # Without an amount error (the one-step envs) the return breaks ties.
+    other = tmp_path / "other"
+    assert keep_if_best(other, {"success": 0.5, "return": 1.0}, Model("x"), None)
+    assert keep_if_best(other, {"success": 0.5, "return": 2.0}, Model("y"), None)
