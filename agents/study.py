@@ -22,22 +22,48 @@ from pour_gym.errors import InputError
 POUR = "PourGym/Pour-v0"
 
 
-def _load_runs(roots: list[Path]) -> dict[str, dict[str, dict]]:
-    runs: dict[str, dict[str, dict]] = {}
+def _load_runs(roots: list[Path]) -> dict[str, dict[str, list[dict]]]:
+    """Every run directory under the roots: ``{env: {obs_mode: [run, ...]}}``.
+
+    The runs of one environment and observation mode (seeds, e.g. a sweep's) are a list,
+    by seed: the report shows their mean and spread, none overwrites another.
+    """
+    runs: dict[str, dict[str, list[dict]]] = {}
     for root in roots:
         for eval_path in sorted(root.glob("*/eval.json")):
             config = json.loads((eval_path.parent / "config.json").read_text())
-            runs.setdefault(config["env"], {})[config["obs_mode"]] = {
-                "config": config,
-                "eval": json.loads(eval_path.read_text()),
-                "dir": eval_path.parent,
-            }
+            runs.setdefault(config["env"], {}).setdefault(config["obs_mode"], []).append(
+                {
+                    "config": config,
+                    "eval": json.loads(eval_path.read_text()),
+                    "dir": eval_path.parent,
+                }
+            )
     if not runs:
         raise InputError(
             f"no runs under {', '.join(map(str, roots))} (train.py run directories with "
             "eval.json; run docs/generalisation/run.sh first)"
         )
+    for modes in runs.values():
+        for group in modes.values():
+            group.sort(key=lambda r: (r["config"].get("seed", 0), str(r["dir"])))
     return runs
+
+
+def _success(group: list[dict]) -> dict[str, np.ndarray]:
+    """Each container's success in each run of a group: ``{object: array over runs}``."""
+    table: dict[str, list[float]] = {}
+    for run in group:
+        for r in run["eval"]["rows"]:
+            table.setdefault(r["object"], []).append(r["success"])
+    return {name: np.asarray(values) for name, values in table.items()}
+
+
+def _cell(values: np.ndarray) -> str:
+    """Mean success, with the spread over seeds when there are several."""
+    if len(values) == 1:
+        return f"{values[0]:.2f}"
+    return f"{values.mean():.2f} ± {values.std(ddof=1):.2f}"
 
 
 def _trained(config: dict) -> str:
@@ -49,21 +75,27 @@ def _trained(config: dict) -> str:
     return f"{algo}, {steps} steps, seed {seed}, on {objects}"
 
 
-def _plot(env: str, modes: dict[str, dict], path: Path) -> Path:
+def _plot(env: str, modes: dict[str, list[dict]], path: Path) -> Path:
+    """Bars of the mean success per container and mode; the spread over seeds as error bars."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    rows = next(iter(modes.values()))["eval"]["rows"]
+    rows = next(iter(modes.values()))[0]["eval"]["rows"]
     names = [r["object"] for r in rows]
     trained = [r["trained_on"] for r in rows]
     x = np.arange(len(names))
     fig, ax = plt.subplots(figsize=(9, 4))
     width = 0.8 / len(modes)
-    for k, (mode, run) in enumerate(sorted(modes.items())):
-        values = [r["success"] for r in run["eval"]["rows"]]
-        ax.bar(x + (k - (len(modes) - 1) / 2) * width, values, width, label=f"obs_mode={mode}")
+    for k, (mode, group) in enumerate(sorted(modes.items())):
+        success = _success(group)
+        means = [success[n].mean() if n in success else 0.0 for n in names]
+        spread = [success[n].std(ddof=1) if n in success and len(success[n]) > 1 else 0.0
+                  for n in names]  # fmt: skip
+        label = f"obs_mode={mode}" + (f" ({len(group)} seeds)" if len(group) > 1 else "")
+        ax.bar(x + (k - (len(modes) - 1) / 2) * width, means, width, yerr=spread, label=label,
+               capsize=2)  # fmt: skip
     labels = [n + (" *" if t else "") for n, t in zip(names, trained, strict=True)]
     ax.set_xticks(x, labels, rotation=35, ha="right", fontsize=8)
     ax.set_ylabel("success rate")
@@ -177,37 +209,53 @@ def study_report(
         ordered = sorted(modes)
         lines += [f"## {env}", ""]
         for m in ordered:
-            cfg = modes[m]["config"]
+            group = modes[m]
+            seeds = [g["config"].get("seed") for g in group]
+            what = _trained(group[0]["config"])
+            if len(group) > 1:
+                what = what.replace(f"seed {seeds[0]}", f"seeds {', '.join(map(str, seeds))}")
             lines.append(
-                f"- `{m}`: {_trained(cfg)}; {modes[m]['eval']['episodes']} evaluation "
-                "episodes per container"
-            )
+                f"- `{m}`: {what}; {group[0]['eval']['episodes']} evaluation episodes per "
+                "container" + (" per seed (mean ± standard deviation over seeds)"
+                               if len(group) > 1 else "")
+            )  # fmt: skip
         lines += [
             "",
             "| container | " + " | ".join(ordered) + " |",
             "|---|" + "---:|" * len(ordered),
         ]
-        rows = {m: {r["object"]: r for r in modes[m]["eval"]["rows"]} for m in ordered}
-        for name in rows[ordered[0]]:
-            cells = [f"{rows[m][name]['success']:.2f}" if name in rows[m] else "" for m in ordered]
-            mark = " (trained)" if rows[ordered[0]][name]["trained_on"] else ""
+        success = {m: _success(modes[m]) for m in ordered}
+        seen = {r["object"]: r["trained_on"] for r in modes[ordered[0]][0]["eval"]["rows"]}
+        for name, was_trained in seen.items():
+            cells = [_cell(success[m][name]) if name in success[m] else "" for m in ordered]
+            mark = " (trained)" if was_trained else ""
             lines.append(f"| {name}{mark} | " + " | ".join(cells) + " |")
         for m in ordered:
-            unseen = [r["success"] for r in rows[m].values() if not r["trained_on"]]
-            trained = [r["success"] for r in rows[m].values() if r["trained_on"]]
+            unseen = [success[m][n] for n, t in seen.items() if not t and n in success[m]]
+            trained = [success[m][n] for n, t in seen.items() if t and n in success[m]]
+            # Per seed: the mean over the unseen containers; then mean and spread of those.
+            per_seed = np.mean(unseen, axis=0) if unseen else None
             summary[env][m] = {
                 "trained": float(np.mean(trained)) if trained else None,
-                "unseen": float(np.mean(unseen)) if unseen else None,
+                "unseen": float(np.mean(per_seed)) if unseen else None,
+                "seeds": [g["config"].get("seed") for g in modes[m]],
+                "unseen_per_seed": per_seed.tolist() if unseen else None,
+                "unseen_std": float(np.std(per_seed, ddof=1))
+                if unseen and len(per_seed) > 1
+                else None,
             }
         lines.append(
             "| mean over unseen | "
-            + " | ".join(f"{summary[env][m]['unseen']:.2f}" for m in ordered)
+            + " | ".join(_cell(np.atleast_1d(summary[env][m]["unseen_per_seed"]))
+                         if summary[env][m]["unseen"] is not None else "" for m in ordered)
             + " |"
-        )
+        )  # fmt: skip
         png = _plot(env, modes, out / f"{env.split('/')[-1]}.png")
         lines += ["", f"![{env}]({png.name})", ""]
         if env == POUR:
-            matrices = {m: pour_matrix(modes[m]["dir"], matrix_episodes) for m in ordered}
+            # The matrix is one run's per mode (the first seed's): it costs 81 pairs of
+            # episodes per run.
+            matrices = {m: pour_matrix(modes[m][0]["dir"], matrix_episodes) for m in ordered}
             heat = _matrix_plot(matrices, out / "Pour-v0-matrix.png")
             lines += [
                 "### Every source into every target",
@@ -221,9 +269,10 @@ def study_report(
             ]
             for m in ordered:
                 doc = matrices[m]
-                seen = set(expand_containers(modes[m]["config"]["objects"]))
+                seen_objects = set(expand_containers(modes[m][0]["config"]["objects"]))
                 both = [r["success"] for r in doc["rows"]
-                        if r["source"] not in seen and r["target"] not in seen]  # fmt: skip
+                        if r["source"] not in seen_objects
+                        and r["target"] not in seen_objects]  # fmt: skip
                 summary[env][m]["matrix"] = {
                     "success": doc["mean"]["success"],
                     "success_unseen_pairs": float(np.mean(both)) if both else None,

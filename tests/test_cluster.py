@@ -214,3 +214,37 @@ def test_sweep_on_a_two_node_cluster_uses_both_nodes(tmp_path):
         left = _ray_processes(temp, port)
         shutil.rmtree(temp, ignore_errors=True)
     assert not left, left
+
+
+def test_study_report_keeps_every_seed_of_a_sweep(tmp_path):
+    """Runs of one env and mode with different seeds (a sweep's) are averaged, with their
+    spread; none overwrites another."""
+    from pour_gym.agents.study import study_report
+
+    unseen = {0: (0.2, 0.4), 1: (0.6, 0.8), 2: (1.0, 1.0)}  # standard_cup, high_cup per seed
+    runs = tmp_path / "runs"
+    for mode, seeds in (("features", [2, 0, 1]), ("state", [0])):
+        for seed in seeds:
+            run = runs / f"seed-{seed}_obs_mode-{mode}"
+            run.mkdir(parents=True)
+            config = {"env": "PourGym/TiltPour-v0", "obs_mode": mode, "algo": "ppo",
+                      "timesteps": 256, "seed": seed, "objects": "red_cup"}  # fmt: skip
+            a, b = unseen[seed]
+            rows = [
+                {"object": "red_cup", "trained_on": True, "success": 1.0},
+                {"object": "standard_cup", "trained_on": False, "success": a},
+                {"object": "high_cup", "trained_on": False, "success": b},
+            ]
+            (run / "config.json").write_text(json.dumps(config))
+            (run / "eval.json").write_text(json.dumps({"episodes": 5, "rows": rows}))
+    summary = study_report(runs, tmp_path / "report")["PourGym/TiltPour-v0"]
+    features = summary["features"]
+    assert features["seeds"] == [0, 1, 2]
+    assert features["unseen_per_seed"] == pytest.approx([0.3, 0.7, 1.0])
+    assert features["unseen"] == pytest.approx(2.0 / 3.0)
+    assert features["unseen_std"] == pytest.approx(np.std([0.3, 0.7, 1.0], ddof=1))
+    assert summary["state"]["unseen"] == pytest.approx(0.3)
+    assert summary["state"]["unseen_std"] is None
+    report = (tmp_path / "report" / "report.md").read_text()
+    assert "seeds 0, 1, 2" in report and "0.60 ± 0.40" in report  # standard_cup, features
+    assert (tmp_path / "report" / "TiltPour-v0.png").is_file()
