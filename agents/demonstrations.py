@@ -269,9 +269,7 @@ class BCRegularisedAdam(torch.optim.Adam):
     def step(self, closure=None):
         """Add the regulariser's gradient, then take Adam's step."""
         if self.regulariser is not None:
-            loss = self.regulariser()
-            loss.backward()
-            self.last_regulariser = float(loss)
+            self.regulariser().backward()
         return super().step(closure)
 
 
