@@ -154,7 +154,7 @@ def sweep(spec_path: str | Path, out: str | Path, address: str | None = None) ->
 
 
 def sweep_table(doc: dict, grid_fields: list[str]) -> str:
-    """A markdown table: the varied fields, mean success and amount error per trial."""
+    """A markdown table: the varied fields, mean success and mean reward per trial."""
     head = [*grid_fields, "success", "mean reward", "run"]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for trial in doc["trials"]:
