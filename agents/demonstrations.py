@@ -57,24 +57,23 @@ class Demonstrations:
         return len(self.rewards)
 
 
-def rate_as_angle(rate: float, tilt_deg: float, max_tilt_rate: float, max_tilt: float) -> float:
+def rate_as_angle(rate: float, env) -> float:
     """The ``tilt_control="angle"`` action that tilts as the rate action ``rate`` does.
 
-    One 0.1 s step at rate r moves the tilt by r * max_tilt_rate * 0.1 deg; the angle
-    action whose goal is that tilt moves it by the same amount (the goal is within one
-    step's reach), and the env clips both to [0, max_tilt] alike.
+    One step of ``env.dt`` at rate r moves the tilt by r * max_tilt_rate * dt deg; the
+    angle action whose goal is that tilt moves it by the same amount (the goal is within
+    one step's reach), and the env clips both to [0, max_tilt] alike.
 
     Args:
         rate: the rate action in [-1, 1].
-        tilt_deg: the source's tilt before the step, deg.
-        max_tilt_rate: the env's ``max_tilt_rate``, deg/s.
-        max_tilt: the env's ``max_tilt``, deg.
+        env: the Pour-v0 env (unwrapped) before the step: its ``tilt`` (deg),
+            ``max_tilt_rate`` (deg/s), ``max_tilt`` (deg) and ``dt`` (s).
 
     Returns:
         The angle action in [-1, 1].
     """
-    goal = tilt_deg + float(rate) * max_tilt_rate * 0.1
-    action = 2.0 * (goal + UPRIGHT_BAND) / (max_tilt + UPRIGHT_BAND) - 1.0
+    goal = env.tilt + float(rate) * env.max_tilt_rate * env.dt
+    action = 2.0 * (goal + UPRIGHT_BAND) / (env.max_tilt + UPRIGHT_BAND) - 1.0
     return float(np.clip(action, -1.0, 1.0))
 
 
@@ -129,7 +128,7 @@ def collect_demonstrations(
         while not done:
             action = np.asarray(policy(base.observe("features")), dtype=np.float64).copy()
             if base.tilt_control == "angle":
-                action[3] = rate_as_angle(action[3], base.tilt, base.max_tilt_rate, base.max_tilt)
+                action[3] = rate_as_angle(action[3], base)
             next_obs, reward, terminated, truncated, info = env.step(action.astype(np.float32))
             rows["obs"].append(obs)
             rows["act"].append(action)

@@ -40,7 +40,7 @@ def test_rate_as_angle_tilts_the_source_as_the_rate_action_does():
     by_angle.reset(seed=3)
     a, b = by_rate.unwrapped, by_angle.unwrapped
     for rate in (-1.0, 1.0, 1.0, 0.3, 1.0, 1.0, 1.0, 1.0, -0.5, -1.0, -1.0, -1.0, -1.0):
-        angle = rate_as_angle(rate, b.tilt, b.max_tilt_rate, b.max_tilt)
+        angle = rate_as_angle(rate, b)
         by_rate.step(np.array([0, 0, 0, rate], dtype=np.float32))
         by_angle.step(np.array([0, 0, 0, angle], dtype=np.float32))
         assert b.tilt == pytest.approx(a.tilt, abs=1e-4)
