@@ -415,9 +415,10 @@ class PourEnv(PourGymEnv):
 
     def source_rotation(self, tilt_deg: float) -> np.ndarray:
         """The source's rotation at a tilt (deg) towards +x, its lip facing the target."""
-        return Rotation.from_euler("y", tilt_deg, degrees=True).as_matrix() @ (
-            self.source_base_rotation
-        )
+        # About y by hand: SciPy's Rotation objects cost more than the rest of this step's
+        # bookkeeping together.
+        c, s = np.cos(np.radians(tilt_deg)), np.sin(np.radians(tilt_deg))
+        return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]]) @ self.source_base_rotation
 
     def _count(self) -> dict:
         """Particles in the source, in the target, in flight and spilled (and where)."""

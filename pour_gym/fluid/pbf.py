@@ -29,7 +29,7 @@ from dataclasses import asdict, dataclass
 import numba as nb
 import numpy as np
 
-from pour_gym.fluid.sdf import FASTMATH, SignedDistanceField, trilinear
+from pour_gym.fluid.sdf import FASTMATH, NO_REFCOUNT, SignedDistanceField, trilinear
 
 GRAVITY = np.array([0.0, 0.0, -9.81])
 # Water poured from a table-top cup never moves this fast; a particle that does has diverged.
@@ -193,7 +193,7 @@ def quaternion(rotation: np.ndarray) -> np.ndarray:
     return q / np.linalg.norm(q)
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, **NO_REFCOUNT)
 def _slerp_matrix(q0, q1, f, out):
     """Rotation matrix of the slerp from unit quaternion q0 to q1 at fraction f, into out."""
     dot = q0[0] * q1[0] + q0[1] * q1[1] + q0[2] * q1[2] + q0[3] * q1[3]
@@ -223,13 +223,14 @@ def _slerp_matrix(q0, q1, f, out):
     out[2, 2] = 1.0 - 2.0 * (x * x + y * y)
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, **NO_REFCOUNT)
 def _pose_at(q0, q1, r0, r1, t0, t1, f, rot, trans):
     """A collider's pose at fraction f of the step (the end points exactly as given)."""
-    if f <= 0.0:
-        rot[:, :] = r0
-    elif f >= 1.0:
-        rot[:, :] = r1
+    if f <= 0.0 or f >= 1.0:
+        end = r0 if f <= 0.0 else r1
+        for a in range(3):
+            for b in range(3):
+                rot[a, b] = end[a, b]
     else:
         _slerp_matrix(q0, q1, f, rot)
     for a in range(3):
@@ -284,7 +285,7 @@ def _sample(values, offs, dims, origins, spacings, k, x, y, z, gradient):
     )
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, **NO_REFCOUNT)
 def _sort_cells(p, h, max_cells, keys, order, start, sorted_p, grid):
     """Counting sort of the particles into a dense cell grid over their bounds.
 
@@ -295,34 +296,30 @@ def _sort_cells(p, h, max_cells, keys, order, start, sorted_p, grid):
     ny, nz) for :func:`_neighbours_of`.
     """
     n = p.shape[0]
-    lo = np.empty(3)
-    hi = np.empty(3)
-    for a in range(3):
-        lo[a] = np.inf
-        hi[a] = -np.inf
+    lx = ly = lz = np.inf
+    hx = hy = hz = -np.inf
     for i in range(n):
-        for a in range(3):
-            lo[a] = min(lo[a], p[i, a])
-            hi[a] = max(hi[a], p[i, a])
-    volume = 1.0
-    for a in range(3):
-        lo[a] -= 1e-9
-        volume *= hi[a] - lo[a] + 1e-9 + h
+        lx, hx = min(lx, p[i, 0]), max(hx, p[i, 0])
+        ly, hy = min(ly, p[i, 1]), max(hy, p[i, 1])
+        lz, hz = min(lz, p[i, 2]), max(hz, p[i, 2])
+    lx, ly, lz = lx - 1e-9, ly - 1e-9, lz - 1e-9
+    volume = (hx - lx + 1e-9 + h) * (hy - ly + 1e-9 + h) * (hz - lz + 1e-9 + h)
     cell = max(h, (volume / max_cells) ** (1.0 / 3.0))
-    nx = int((hi[0] - lo[0]) / cell) + 1
-    ny = int((hi[1] - lo[1]) / cell) + 1
-    nz = int((hi[2] - lo[2]) / cell) + 1
+    nx = int((hx - lx) / cell) + 1
+    ny = int((hy - ly) / cell) + 1
+    nz = int((hz - lz) / cell) + 1
     while nx * ny * nz > max_cells:  # rounding up the extents can overshoot a little
         cell *= 1.01
-        nx = int((hi[0] - lo[0]) / cell) + 1
-        ny = int((hi[1] - lo[1]) / cell) + 1
-        nz = int((hi[2] - lo[2]) / cell) + 1
+        nx = int((hx - lx) / cell) + 1
+        ny = int((hy - ly) / cell) + 1
+        nz = int((hz - lz) / cell) + 1
     n_cells = nx * ny * nz
-    start[: n_cells + 1] = 0
+    for k in range(n_cells + 1):
+        start[k] = 0
     for i in range(n):
-        cx = int((p[i, 0] - lo[0]) / cell)
-        cy = int((p[i, 1] - lo[1]) / cell)
-        cz = int((p[i, 2] - lo[2]) / cell)
+        cx = int((p[i, 0] - lx) / cell)
+        cy = int((p[i, 1] - ly) / cell)
+        cz = int((p[i, 2] - lz) / cell)
         k = (cx * ny + cy) * nz + cz
         keys[i] = k
         start[k + 1] += 1
@@ -340,11 +337,11 @@ def _sort_cells(p, h, max_cells, keys, order, start, sorted_p, grid):
     for k in range(n_cells, 0, -1):
         start[k] = start[k - 1]
     start[0] = 0
-    grid[0], grid[1], grid[2], grid[3] = lo[0], lo[1], lo[2], cell
+    grid[0], grid[1], grid[2], grid[3] = lx, ly, lz, cell
     grid[4], grid[5], grid[6] = nx, ny, nz
 
 
-@nb.njit(cache=True, fastmath=FASTMATH)
+@nb.njit(cache=True, fastmath=FASTMATH, **NO_REFCOUNT)
 def _neighbours_of(i, p, h2, grid, order, start, sorted_p, nbr, nbr_count):
     """Particle i's neighbours within sqrt(h2), from the nine column runs around it."""
     lx, ly, lz, cell = grid[0], grid[1], grid[2], grid[3]
@@ -373,7 +370,7 @@ def _neighbours_of(i, p, h2, grid, order, start, sorted_p, nbr, nbr_count):
     nbr_count[i] = c
 
 
-@nb.njit(cache=True, fastmath=FASTMATH)
+@nb.njit(cache=True, fastmath=FASTMATH, **NO_REFCOUNT)
 def _first_entry(values, offs, dims, origins, spacings, k, sx, sy, sz, qx, qy, qz, radius):
     """Where a straight path from s to q first comes within ``radius`` of collider k's wall.
 
@@ -410,7 +407,7 @@ def _first_entry(values, offs, dims, origins, spacings, k, sx, sy, sz, qx, qy, q
     return lo
 
 
-@nb.njit(cache=True, fastmath=FASTMATH)
+@nb.njit(cache=True, fastmath=FASTMATH, **NO_REFCOUNT)
 def _collide_one(p, prev, i, k, radius, values, offs, dims, origins, spacings, rot_s, tr_s,
                  rot_e, tr_e):  # fmt: skip
     """Push particle i out of collider k's material; 1 if it had tunnelled into a wall.
@@ -484,7 +481,7 @@ def _collide_one(p, prev, i, k, radius, values, offs, dims, origins, spacings, r
     return tunnelled
 
 
-@nb.njit(cache=True, fastmath=FASTMATH)
+@nb.njit(cache=True, fastmath=FASTMATH, **NO_REFCOUNT)
 def _wall_term(i, p, wall, floor, has_floor, h, wall_table, values, offs, dims, origins,
                spacings, rot_e, tr_e):  # fmt: skip
     """The density the nearest wall stands in for at particle i, and its gradient.
@@ -780,15 +777,19 @@ def _noalias_option() -> dict:
 
 
 def _builds(passes: tuple, driver: types.FunctionType) -> dict:
-    """The driver compiled twice: calling serial passes, and calling parallel builds."""
+    """The driver compiled twice: calling serial passes, and calling parallel builds.
+
+    The serial build runs without numba's runtime (:data:`NO_REFCOUNT`: none of its
+    functions allocates); the parallel loops need it for their scheduling.
+    """
     fast = {"cache": True, "fastmath": FASTMATH, **_noalias_option()}
     serial = dict(driver.__globals__)
     parallel = dict(driver.__globals__)
     for f in passes:
-        serial[f.__name__] = nb.njit(**fast)(f)
+        serial[f.__name__] = nb.njit(**fast, **NO_REFCOUNT)(f)
         parallel[f.__name__] = nb.njit(**fast, parallel=True)(_twin(f, "_parallel"))
     return {
-        False: nb.njit(**fast)(_twin(driver, "_serial", serial)),
+        False: nb.njit(**fast, **NO_REFCOUNT)(_twin(driver, "_serial", serial)),
         True: nb.njit(**fast)(_twin(driver, "_parallel", parallel)),
     }
 

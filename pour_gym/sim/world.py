@@ -27,7 +27,7 @@ from pour_gym.assets import LabelledAsset, load_asset
 from pour_gym.cache import cache_dir
 from pour_gym.errors import InputError, SimulationError
 from pour_gym.fluid.bullet import BodyCollider, BulletFluid, convex_parts
-from pour_gym.fluid.pbf import Collider, PBFConfig, PBFluid, wall_distance
+from pour_gym.fluid.pbf import Collider, PBFConfig, PBFluid, quaternion, wall_distance
 from pour_gym.fluid.sdf import SignedDistanceField, build_sdf
 from pour_gym.sim.camera import Camera, render
 from pour_gym.sim.census import Census, take_census
@@ -339,9 +339,13 @@ class World:
         self._check_open()
         n_sub = self.fluid.step(dt)
         if isinstance(self.fluid, PBFluid):
+            # The bodies follow for rendering (the fluid collides with the fields). The
+            # quaternion by Shepperd's method: SciPy's took 0.2 ms a container, 5 % of a step.
             for c in self.containers:
-                quat = Rotation.from_matrix(c.rotation).as_quat().tolist()
-                self.client.resetBasePositionAndOrientation(c.body, c.translation.tolist(), quat)
+                w, x, y, z = quaternion(c.rotation)
+                self.client.resetBasePositionAndOrientation(
+                    c.body, c.translation.tolist(), [x, y, z, w]
+                )
         return n_sub
 
     @property
