@@ -12,7 +12,7 @@ TORCH_SPEC ?= torch==2.13.0
 TORCH_PIP_ARGS ?=
 DEMO_OUT ?= demo_out
 
-.PHONY: demo test install install-dev lint bench clean
+.PHONY: demo test install install-rllib install-dev lint bench clean
 
 $(VENV)/.stamp-base:
 	$(PYTHON) -m venv $(VENV)
@@ -25,10 +25,21 @@ $(VENV)/.stamp-install: $(VENV)/.stamp-base pyproject.toml
 
 install: $(VENV)/.stamp-install
 
+# RLlib in a venv of its own: ray[rllib] pins gymnasium 1.2.2, the suite runs on 1.4.
+# tests/test_rllib.py runs PPO in it.
+RLLIB_VENV ?= .venv-rllib
+$(RLLIB_VENV)/.stamp-install: pyproject.toml
+	$(PYTHON) -m venv $(RLLIB_VENV)
+	$(RLLIB_VENV)/bin/python -m pip install --quiet "$(TORCH_SPEC)" $(TORCH_PIP_ARGS)
+	$(RLLIB_VENV)/bin/python -m pip install --quiet -e ".[rllib]"
+	@touch $@
+
+install-rllib: $(RLLIB_VENV)/.stamp-install
+
 demo: install
 	$(PY) -m pour_gym.cli demo --out $(DEMO_OUT)
 
-test: install
+test: install install-rllib
 	$(PY) -m pytest -q
 
 lint: install
@@ -39,4 +50,4 @@ bench: install
 	$(PY) -m pour_gym.cli bench reconstruct
 
 clean:
-	rm -rf $(VENV) $(DEMO_OUT) build *.egg-info
+	rm -rf $(VENV) $(RLLIB_VENV) $(DEMO_OUT) build *.egg-info
