@@ -176,7 +176,9 @@ class PourEnv(PourGymEnv):
       :mod:`pour_gym.features`; it was the held lip's height); feature ``in_source``
       added; reward weights and the ``time``, ``aim`` and ``upright`` shaping terms are
       arguments (with ``control`` and ``tilt``); ``num_threads``, ``tilt_control`` and the reset
-      options ``near_target`` and ``fill_margin`` added.
+      options ``near_target`` and ``fill_margin`` added; the fluid's one-thread kernel runs
+      without numba's reference counting (1.3x faster; the same physics, the particles
+      differ from before in their last bits).
     * v0 (first release): 1000 particles, six 1/60 s fluid steps per step.
     """
 

@@ -9,9 +9,13 @@ pour-gym search --objects red_cup --target-objects standard_bowl --objective err
     --target-amount 20 --generations 10 --population 8 --episodes 6 --seed 1 --out docs/poc
 cp docs/poc/search.json agents/poc_search_red_cup_20.json
 # The thesis's open-loop policy: 60 red-cup samples, then the seven cups, 3 pours each.
-pour-gym poc --policy thesis --samples 60 --episodes 3 --seed 100 --out docs/poc
+pour-gym poc --policy thesis --samples 60 --episodes 3 --seed 100 --out docs/poc \
+    > docs/poc/poc_thesis_20.md
 # The closed-loop policy at 20 particles (2.5 ml), 10 ml and 25 ml (seeds the search
 # never saw: it used 1000-1005).
-pour-gym poc --policy closed-loop --episodes 3 --seed 100 --out docs/poc
-pour-gym poc --policy closed-loop --episodes 3 --seed 100 --target-ml 10 --out docs/poc
-pour-gym poc --policy closed-loop --episodes 3 --seed 100 --target-ml 25 --out docs/poc
+pour-gym poc --policy closed-loop --episodes 3 --seed 100 --out docs/poc \
+    > docs/poc/poc_closed-loop_20.md
+pour-gym poc --policy closed-loop --episodes 3 --seed 100 --target-ml 10 --out docs/poc \
+    > docs/poc/poc_closed-loop_80.md
+pour-gym poc --policy closed-loop --episodes 3 --seed 100 --target-ml 25 --out docs/poc \
+    > docs/poc/poc_closed-loop_200.md
