@@ -12,6 +12,13 @@ learns from.
 The recorded actions are in the training env's action form: with ``tilt_control="angle"``
 the scripted tilt rate r becomes the angle the env reaches in one step at that rate
 (:func:`rate_as_angle`), so the env moves exactly as under the rate action.
+
+A policy cloned from an expert's own episodes has only seen the states the expert keeps
+to, and on a cup it never saw it soon leaves them (covariate shift). With ``noise`` the
+executed actions are the expert's plus Gaussian noise while the expert's clean action is
+kept as the label (DART, Laskey et al. 2017): the episodes wander off the expert's path and
+record how it corrects, i.e. its feedback law (tilt back when the flow is too strong) rather
+than the one trajectory of the training cup.
 """
 
 from __future__ import annotations
@@ -26,6 +33,7 @@ from stable_baselines3.common.buffers import ReplayBuffer
 from stable_baselines3.common.type_aliases import ReplayBufferSamples
 from tqdm import tqdm
 
+from pour_gym.agents.curriculum import TrainingStarts
 from pour_gym.agents.scripted import ScriptedPourPolicy
 from pour_gym.envs.pour import UPRIGHT_BAND
 from pour_gym.errors import InputError
@@ -37,12 +45,14 @@ class Demonstrations:
 
     Attributes:
         observations: (n, obs_dim) the observations the actions were taken in.
-        actions: (n, act_dim) the actions, in [-1, 1].
+        actions: (n, act_dim) the actions executed, in [-1, 1] (the transitions' actions).
         rewards: (n,) the rewards.
         next_observations: (n, obs_dim) the observations after the actions.
         terminated: (n,) 1.0 where the episode ended by the task (not by the time limit).
         episodes: the number of episodes.
         successes: the number of them that succeeded.
+        expert_actions: (n, act_dim) the expert's own actions in the same observations
+            (behaviour cloning's labels); the executed ones when None (no noise).
     """
 
     observations: np.ndarray
@@ -52,6 +62,12 @@ class Demonstrations:
     terminated: np.ndarray
     episodes: int
     successes: int
+    expert_actions: np.ndarray | None = None
+
+    @property
+    def labels(self) -> np.ndarray:
+        """The actions behaviour cloning fits: the expert's, without the injected noise."""
+        return self.actions if self.expert_actions is None else self.expert_actions
 
     def __len__(self) -> int:
         return len(self.rewards)
@@ -83,55 +99,74 @@ def collect_demonstrations(
     episodes: int,
     seed: int,
     near_target: float = 0.0,
+    fill_margin: tuple[int, int] | None = None,
+    noise: float | tuple[float, ...] = 0.0,
+    expert: dict | None = None,
     progress: bool = True,
 ) -> Demonstrations:
     """Record the scripted policy's episodes in the env a learner trains in.
 
     The scripted policy reads the features whatever the env's ``obs_mode``; the
     observations recorded are the env's own, so a state agent's demonstrations hold
-    state observations.
+    state observations. Episodes start as the training curriculum's do
+    (:class:`~pour_gym.agents.curriculum.TrainingStarts`, seeded by ``seed``).
 
     Args:
         env_id: a Pour-v0 id (the scripted policy pours).
         env_kwargs: the training env's arguments (containers, reward weights, tilt control).
         episodes: how many episodes.
         seed: the first episode's reset seed (episode k uses seed + k).
-        near_target: the share of episodes that start with the lip over the target (as the
-            training curriculum's), drawn with ``seed``.
+        near_target: the share of episodes that start with the lip over the target.
+        fill_margin: (lo, hi) particles of fill beyond the target amount, drawn per
+            episode, or None for the env's own fill.
+        noise: standard deviation of the Gaussian noise added to the executed actions
+            (one value, or one per action dimension), in action units; the expert's clean
+            actions are kept as :attr:`Demonstrations.expert_actions`.
+        expert: arguments of the :class:`~pour_gym.agents.scripted.ScriptedPourPolicy`
+            that demonstrates (its defaults if None).
         progress: show a progress bar.
 
     Returns:
         The transitions of every step of every episode.
 
     Raises:
-        InputError: an env the scripted policy cannot act in.
+        InputError: an env the scripted policy cannot act in, or a negative noise.
     """
     import pour_gym  # noqa: F401 - registers the environments
 
     if episodes < 1:
         raise InputError(f"demonstrations need at least one episode, not {episodes}")
-    env = gym.make(env_id, **env_kwargs)
+    sigma = np.broadcast_to(np.asarray(noise, dtype=np.float64), (4,))
+    if np.any(sigma < 0) or not np.all(np.isfinite(sigma)):
+        raise InputError(f"demonstration noise must be finite and >= 0, not {noise}")
+    env = TrainingStarts(gym.make(env_id, **env_kwargs), near_target, fill_margin)
     base = env.unwrapped
     if not hasattr(base, "observe"):
         env.close()
         raise InputError(f"the scripted policy pours in Pour-v0, not in {env_id}")
-    policy = ScriptedPourPolicy()
+    try:
+        policy = ScriptedPourPolicy(**(expert or {}))
+    except TypeError as exc:
+        env.close()
+        raise InputError(f"the demonstrating policy's arguments: {exc}") from None
     rng = np.random.default_rng(seed)
-    rows: dict[str, list] = {k: [] for k in ("obs", "act", "rew", "next", "term")}
+    rows: dict[str, list] = {k: [] for k in ("obs", "act", "expert", "rew", "next", "term")}
     successes = 0
     bar = tqdm(total=episodes, desc="demonstrations", file=sys.stderr, disable=not progress)
     for k in range(episodes):
-        options = {"near_target": bool(rng.random() < near_target)}
-        obs, _ = env.reset(seed=seed + k, options=options)
+        obs, _ = env.reset(seed=seed + k)
         policy.reset()
         done = False
         while not done:
-            action = np.asarray(policy(base.observe("features")), dtype=np.float64).copy()
+            expert = np.asarray(policy(base.observe("features")), dtype=np.float64).copy()
+            action = np.clip(expert + sigma * rng.standard_normal(4), -1.0, 1.0)
             if base.tilt_control == "angle":
+                expert[3] = rate_as_angle(expert[3], base)
                 action[3] = rate_as_angle(action[3], base)
             next_obs, reward, terminated, truncated, info = env.step(action.astype(np.float32))
             rows["obs"].append(obs)
             rows["act"].append(action)
+            rows["expert"].append(expert)
             rows["rew"].append(reward)
             rows["next"].append(next_obs)
             rows["term"].append(float(terminated))
@@ -149,6 +184,7 @@ def collect_demonstrations(
         terminated=np.asarray(rows["term"], dtype=np.float32),
         episodes=episodes,
         successes=successes,
+        expert_actions=np.asarray(rows["expert"], dtype=np.float32) if sigma.any() else None,
     )
 
 
@@ -207,7 +243,7 @@ def _demo_tensors(demos: Demonstrations, normaliser=None) -> tuple[torch.Tensor,
     if normaliser is not None:
         obs = normaliser.normalize_obs(obs)
     # tanh reaches +-1 only at infinity: the log-likelihood needs actions inside.
-    actions = np.clip(demos.actions, -0.995, 0.995)
+    actions = np.clip(demos.labels, -0.995, 0.995)
     return torch.as_tensor(obs, dtype=torch.float32), torch.as_tensor(actions, dtype=torch.float32)
 
 
@@ -219,7 +255,13 @@ def _negative_log_likelihood(actor, obs: torch.Tensor, actions: torch.Tensor) ->
 
 
 def pretrain_actor(
-    model, demos: Demonstrations, normaliser=None, steps: int = 2000, batch_size: int = 256
+    model,
+    demos: Demonstrations,
+    normaliser=None,
+    steps: int = 2000,
+    batch_size: int = 256,
+    callback=None,
+    every: int = 0,
 ) -> float:
     """Behaviour cloning: fit an SB3 SAC/TQC actor to the demonstrations' actions.
 
@@ -232,6 +274,10 @@ def pretrain_actor(
         normaliser: the ``VecNormalize`` the learner sees observations through, or None.
         steps: gradient steps.
         batch_size: transitions per step.
+        callback: called with the number of steps taken so far before the first step and
+            every ``every`` steps (a learning curve's points); the actor is in evaluation
+            mode meanwhile.
+        every: steps between calls of ``callback`` (0: never).
 
     Returns:
         The mean squared error of the deterministic actions on the demonstrations
@@ -240,14 +286,19 @@ def pretrain_actor(
     actor = model.actor
     obs_t, act_t = _demo_tensors(demos, normaliser)
     generator = torch.Generator().manual_seed(0)
-    actor.set_training_mode(True)
-    for _ in range(steps):
+    for step in range(steps):
+        if callback is not None and every > 0 and step % every == 0:
+            actor.set_training_mode(False)
+            callback(step)
+        actor.set_training_mode(True)
         idx = torch.randint(0, len(obs_t), (batch_size,), generator=generator)
         loss = _negative_log_likelihood(actor, obs_t[idx], act_t[idx])
         actor.optimizer.zero_grad()
         loss.backward()
         actor.optimizer.step()
     actor.set_training_mode(False)
+    if callback is not None and every > 0:
+        callback(steps)
     with torch.no_grad():
         predicted = actor(obs_t, deterministic=True)
     return float(((predicted - act_t) ** 2).mean())

@@ -77,10 +77,10 @@ def evaluate_policy(
             )
         else:
             env = gym.make(env_id, objects=[source], **(env_kwargs or {}))
-        results = [
-            rollout(env, policy, seed=seed + k * episodes + ep, progress=bar.update)
-            for ep in range(episodes)
-        ]
+        results = []
+        for ep in range(episodes):  # the bar counts episodes, as its total does
+            results.append(rollout(env, policy, seed=seed + k * episodes + ep))
+            bar.update()
         env.close()
         infos = [r.info for r in results]
         rows.append(

@@ -66,6 +66,10 @@ class ScriptedPourPolicy:
         amount: the target amount in particles, if the caller knows it (the features do
             not hold it); it turns the trickle into an absolute ``min_particles``.
         min_particles: the trickle, in particles per step, when ``amount`` is known.
+        start_ramp: how much the lip speed may grow per step from rest, as an action (a
+            gentle start, so that a full source does not slosh over; 1 or more: none).
+            The ramp lives in the policy's memory, not in the observation: a learner
+            imitating it cannot tell the first step from the tenth.
     """
 
     lip_offset: float = 0.6
@@ -79,6 +83,7 @@ class ScriptedPourPolicy:
     max_speed: float = 0.5
     amount: int | None = None
     min_particles: float = 1.5
+    start_ramp: float = 0.1
 
     def __post_init__(self) -> None:
         self.reset()
@@ -94,7 +99,7 @@ class ScriptedPourPolicy:
         o = np.asarray(obs, dtype=np.float64)
         if self.phase == "move":
             # A gentle start, so that a full source does not slosh over.
-            self._speed = min(self._speed + 0.1, self.max_speed)
+            self._speed = min(self._speed + self.start_ramp, self.max_speed)
             action, distance = approach_lip(o, self.lip_offset, self._speed)
             if distance < self.position_tolerance:
                 self.phase = "tilt"

@@ -146,16 +146,19 @@ def _matrix_plot(matrices: dict[str, dict], path: Path) -> Path:
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(1, len(matrices), figsize=(6.5 * len(matrices), 6), squeeze=False)
-    for ax, (mode, doc) in zip(axes[0], sorted(matrices.items()), strict=True):
+    for k, (ax, (mode, doc)) in enumerate(zip(axes[0], sorted(matrices.items()), strict=True)):
         names = doc["objects"]
         grid = np.zeros((len(names), len(names)))
         for r in doc["rows"]:
             grid[names.index(r["source"]), names.index(r["target"])] = r["success"]
         im = ax.imshow(grid, vmin=0, vmax=1, cmap="viridis")
         ax.set_xticks(range(len(names)), names, rotation=60, ha="right", fontsize=7)
-        ax.set_yticks(range(len(names)), names, fontsize=7)
         ax.set_xlabel("target")
-        ax.set_ylabel("source")
+        # The panels share their sources: only the first names them (the others' labels
+        # ran into the panel beside).
+        ax.set_yticks(range(len(names)), names if k == 0 else [], fontsize=7)
+        if k == 0:
+            ax.set_ylabel("source")
         ax.set_title(f"obs_mode={mode}: success per pair ({doc['episodes']} episodes)")
         for i in range(len(names)):
             for j in range(len(names)):

@@ -4,8 +4,9 @@ A run directory holds everything a run makes: ``config.json`` (the exact argumen
 hyperparameters), ``checkpoints/`` (model, observation normaliser and, for off-policy
 algorithms, replay buffer every ``checkpoint_every`` steps), ``progress.csv`` (SB3's
 logger), ``curve.csv`` and ``curve.png`` (success and return on the training containers
-during training), ``model.zip`` with ``vecnormalize.pkl`` beside it when observations are
-normalised, ``eval.json`` and ``eval.md``. Running the same command again resumes from
+during training; ``bc_curve.csv`` during behaviour cloning on demonstrations),
+``model.zip`` with ``vecnormalize.pkl`` beside it when observations are normalised,
+``eval.json`` and ``eval.md``. Running the same command again resumes from
 the newest checkpoint until the requested number of steps is reached. With ``--keep-best``,
 ``best/`` holds the model of the best learning-curve point so far (``point.json``), and
 ``model.zip`` is that model at the end.
@@ -43,6 +44,11 @@ ALGORITHMS = {
     "tqc": "sb3_contrib:TQC",
 }
 NORMALISER = "vecnormalize.pkl"
+# The variance that hides an input from the network (ignore_constant_inputs): its
+# normalised value is its offset over 10^6, a millionth of what the network reads from
+# any other input. Not infinity: SB3 un-normalises terminal observations by multiplying
+# by the standard deviation, and 0 x inf is NaN.
+HIDDEN_VARIANCE = 1e12
 BEST = "best"  # the run's folder of the best learning-curve point (--keep-best)
 # Trained models shipped with the package, one folder each (model.zip, config.json, ...).
 MODELS = Path(__file__).resolve().parent / "models"
@@ -332,8 +338,20 @@ def save_normaliser(venv, folder: Path, steps: int | None = None) -> None:
         venv.save(str(folder / name))
 
 
-def record_curve_point(config: TrainConfig, out: Path, model, venv, env_kwargs: dict) -> dict:
-    """Evaluate the current policy on the training containers; append to ``curve.csv``."""
+def record_curve_point(
+    config: TrainConfig,
+    out: Path,
+    model,
+    venv,
+    env_kwargs: dict,
+    name: str = "curve.csv",
+    x: tuple[str, int] | None = None,
+) -> dict:
+    """Evaluate the current policy on the training containers; append to ``name``.
+
+    ``x`` is the point's abscissa (name, value): the model's environment steps by default,
+    ``("bc_steps", k)`` for the behaviour-cloning curve (``bc_curve.csv``).
+    """
     import gymnasium as gym
     from stable_baselines3.common.vec_env import VecNormalize
 
@@ -345,8 +363,9 @@ def record_curve_point(config: TrainConfig, out: Path, model, venv, env_kwargs: 
         for k in range(config.curve_episodes)
     ]
     env.close()
+    key, value = x if x is not None else ("timesteps", int(model.num_timesteps))
     point = {
-        "timesteps": int(model.num_timesteps),
+        key: int(value),
         "success": float(np.mean([e.info["is_success"] for e in episodes])),
         "return": float(np.mean([e.reward for e in episodes])),
     }
@@ -355,7 +374,7 @@ def record_curve_point(config: TrainConfig, out: Path, model, venv, env_kwargs: 
             np.mean([abs(e.info["poured"] - e.info["target_amount"]) for e in episodes])
         )
         point["spilled"] = float(np.mean([e.info["spilled"] for e in episodes]))
-    path = out / "curve.csv"
+    path = out / name
     new = not path.is_file()
     with open(path, "a") as fh:
         if new:
@@ -364,48 +383,70 @@ def record_curve_point(config: TrainConfig, out: Path, model, venv, env_kwargs: 
     return point
 
 
-def plot_curve(out: Path, title: str) -> Path | None:
-    """``curve.png`` from ``curve.csv``: success and return against steps.
-
-    For Pour-v0, a second panel shows the amount error and the spill.
-    """
+def _read_curve(path: Path) -> dict[str, np.ndarray] | None:
+    """A learning curve's CSV as columns (None if missing or empty)."""
     import csv
 
-    path = out / "curve.csv"
     if not path.is_file():
+        return None
+    with open(path, newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    if not rows:
+        return None
+    return {
+        key: np.array([float(r[key]) if r[key] not in ("", "None") else np.nan for r in rows])
+        for key in rows[0]
+    }
+
+
+def plot_curve(out: Path, title: str) -> Path | None:
+    """``curve.png``: success and return against behaviour-cloning and environment steps.
+
+    One row per curve the run has: ``bc_curve.csv`` (during behaviour cloning on the
+    demonstrations, against gradient steps) and ``curve.csv`` (during training, against
+    environment steps). For Pour-v0, a second panel shows the amount error and the spill.
+    """
+    curves = [
+        (data, key, label)
+        for name, key, label in (
+            ("bc_curve.csv", "bc_steps", "behaviour-cloning gradient steps"),
+            ("curve.csv", "timesteps", "environment steps"),
+        )
+        if (data := _read_curve(out / name)) is not None
+    ]
+    if not curves:
         return None
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    with open(path, newline="") as fh:
-        rows = list(csv.DictReader(fh))
-    if not rows:
-        return None
-    data = {
-        key: np.array([float(r[key]) if r[key] not in ("", "None") else np.nan for r in rows])
-        for key in rows[0]
-    }
-    pour = "amount_error" in data and not np.all(np.isnan(data["amount_error"]))
-    fig, axes = plt.subplots(1, 2 if pour else 1, figsize=(11 if pour else 7, 4), squeeze=False)
-    ax = axes[0, 0]
-    steps = data["timesteps"]
-    ax.plot(steps, data["success"], "o-", label="success rate")
-    ax.set_xlabel("environment steps")
-    ax.set_ylabel("success rate (deterministic policy)")
-    ax.set_ylim(-0.02, 1.02)
-    ax2 = ax.twinx()
-    ax2.plot(steps, data["return"], "s--", color="tab:orange", label="return")
-    ax2.set_ylabel("mean return")
-    fig.legend(loc="upper left", fontsize=8)
-    if pour:
-        ax = axes[0, 1]
-        ax.plot(steps, data["amount_error"], "o-", color="tab:red", label="|poured - target|")
-        ax.plot(steps, data["spilled"], "s--", color="tab:purple", label="spilled")
-        ax.set_xlabel("environment steps")
-        ax.set_ylabel("particles (mean per episode)")
-        ax.legend(fontsize=8)
+    pour = any(
+        "amount_error" in d and not np.all(np.isnan(d["amount_error"])) for d, _, _ in curves
+    )
+    fig, axes = plt.subplots(
+        len(curves), 2 if pour else 1, figsize=(11 if pour else 7, 4 * len(curves)),
+        squeeze=False,
+    )  # fmt: skip
+    for row, (data, key, label) in enumerate(curves):
+        ax = axes[row, 0]
+        steps = data[key]
+        ax.plot(steps, data["success"], "o-", label="success rate")
+        ax.set_xlabel(label)
+        ax.set_ylabel("success rate (deterministic policy)")
+        ax.set_ylim(-0.02, 1.02)
+        ax2 = ax.twinx()
+        ax2.plot(steps, data["return"], "s--", color="tab:orange", label="return")
+        ax2.set_ylabel("mean return")
+        ax.legend(loc="upper left", fontsize=8)
+        ax2.legend(loc="lower right", fontsize=8)
+        if pour:
+            ax = axes[row, 1]
+            ax.plot(steps, data["amount_error"], "o-", color="tab:red", label="|poured - target|")
+            ax.plot(steps, data["spilled"], "s--", color="tab:purple", label="spilled")
+            ax.set_xlabel(label)
+            ax.set_ylabel("particles (mean per episode)")
+            ax.legend(fontsize=8)
     fig.suptitle(title, fontsize=9)
     fig.tight_layout()
     png = out / "curve.png"
@@ -431,25 +472,63 @@ def recipe_curriculum(params: dict) -> dict | None:
 def recipe_demonstrations(params: dict) -> dict | None:
     """Take the ``demonstrations`` key out of a recipe's parameters.
 
-    ``demonstrations: {episodes: n, share: s, bc_steps: k, bc_weight: w}``: record n
-    episodes of the scripted policy, keep them as a share s of every replay batch,
-    pre-train the actor on them for k steps and keep a behaviour-cloning term of weight w
-    in its every update (:mod:`pour_gym.agents.demonstrations`). Off-policy algorithms with
-    an actor (SAC, TQC) only.
+    ``demonstrations: {episodes: n, share: s, bc_steps: k, bc_weight: w, noise: sigma,
+    expert: {...}, ignore_constant: true, hide: [names]}``: record n episodes of the
+    scripted policy (``expert``: its arguments; its executed actions with Gaussian noise of
+    standard deviation sigma, one value or one per action, its clean actions as the
+    labels), keep them as a share s of every replay batch, pre-train the actor on them for
+    k steps and keep a behaviour-cloning term of weight w in its every update
+    (:mod:`pour_gym.agents.demonstrations`); with ``ignore_constant`` the network is blind
+    to every input the demonstrations never vary, and to the inputs ``hide`` names
+    (:func:`ignore_constant_inputs`). Off-policy algorithms with an actor (SAC, TQC) only.
     """
     demos = params.pop("demonstrations", None)
     if not demos:
         return None
-    keys = {"episodes", "share", "bc_steps", "bc_weight"}
+    keys = {"episodes", "share", "bc_steps", "bc_weight", "noise", "expert", "ignore_constant",
+            "hide"}  # fmt: skip
     if set(demos) - keys:
         unknown = sorted(set(demos) - keys)
         raise InputError(f"unknown demonstrations keys {unknown}; use {', '.join(sorted(keys))}")
+    noise = demos.get("noise", 0.0)
     return {
         "episodes": int(demos.get("episodes", 50)),
         "share": float(demos.get("share", 0.5)),
         "bc_steps": int(demos.get("bc_steps", 0)),
         "bc_weight": float(demos.get("bc_weight", 0.0)),
+        "noise": [float(n) for n in noise] if isinstance(noise, list) else float(noise),
+        "expert": dict(demos.get("expert") or {}),
+        "ignore_constant": bool(demos.get("ignore_constant", False)),
+        "hide": [str(name) for name in demos.get("hide") or []],
     }
+
+
+def ignore_constant_inputs(normaliser, observations: np.ndarray, names=None, also=()) -> list:
+    """Blind a ``VecNormalize`` (and so the network behind it) to inputs that never vary.
+
+    Trained on one cup, the containers' rim radii and heights (or, from raw state, their
+    bounding boxes) are constants: the network cannot learn what they mean, and on another
+    cup their difference is an input it never saw, which moves its actions arbitrarily.
+    Such an input's variance is set to :data:`HIDDEN_VARIANCE`, which scales it to about
+    nothing whatever it is; the statistics are saved with the normaliser, so evaluation
+    sees the same.
+
+    Args:
+        normaliser: a ``VecNormalize`` whose statistics are fixed (``training=False``).
+        observations: (n, obs_dim) the observations the statistics came from.
+        names: the inputs' names, for the returned list (indices if None).
+        also: names of inputs to hide as well, where ``names`` has them.
+
+    Returns:
+        The names (or indices) of the inputs left out.
+    """
+    spread = observations.max(axis=0) - observations.min(axis=0)
+    constant = spread <= 1e-6 * np.maximum(np.abs(observations).max(axis=0), 1.0)
+    if names is not None:
+        constant |= np.isin(np.asarray(names), list(also))
+    hidden = np.flatnonzero(constant)
+    normaliser.obs_rms.var[hidden] = HIDDEN_VARIANCE
+    return [names[k] if names is not None else int(k) for k in hidden]
 
 
 def start_from_demonstrations(
@@ -471,12 +550,16 @@ def start_from_demonstrations(
         regularise_actor,
     )
 
+    curriculum = curriculum or {}
     demos = collect_demonstrations(
         config.env,
         env_kwargs,
         demos_cfg["episodes"],
         seed=900_000 + 1000 * config.seed,
-        near_target=(curriculum or {}).get("near_target", 0.0),
+        near_target=curriculum.get("near_target", 0.0),
+        fill_margin=curriculum.get("fill_margin"),
+        noise=demos_cfg.get("noise", 0.0),
+        expert=demos_cfg.get("expert"),
     )
     model.replay_buffer.add_demonstrations(demos)
     normaliser = venv if isinstance(venv, VecNormalize) else None
@@ -488,9 +571,28 @@ def start_from_demonstrations(
         # when 2000 random steps had moved them, with SB3's default floor).
         normaliser.obs_rms.update(demos.observations)
         normaliser.training = False
+    ignored = []
+    if demos_cfg.get("ignore_constant") or demos_cfg.get("hide"):
+        if normaliser is None or not normaliser.norm_obs:
+            raise InputError("demonstrations' ignore_constant needs normalize: {norm_obs: true}")
+        names = venv.get_attr("obs_names")[0]
+        ignored = ignore_constant_inputs(
+            normaliser, demos.observations, names, also=demos_cfg.get("hide", ())
+        )
     mse = None
     if demos_cfg["bc_steps"] > 0:
-        mse = pretrain_actor(model, demos, normaliser, steps=demos_cfg["bc_steps"])
+        # The learning curve of behaviour cloning: six points (bc_curve.csv), with the
+        # training curve's episodes, when the run draws one.
+        every = max(demos_cfg["bc_steps"] // 6, 1) if config.curve_every > 0 else 0
+
+        def point(step: int) -> None:
+            record_curve_point(
+                config, out, model, venv, env_kwargs, "bc_curve.csv", ("bc_steps", step)
+            )
+
+        mse = pretrain_actor(
+            model, demos, normaliser, steps=demos_cfg["bc_steps"], callback=point, every=every
+        )
     if demos_cfg["bc_weight"] > 0:
         regularise_actor(model, demos, normaliser, weight=demos_cfg["bc_weight"])
     record = {
@@ -498,6 +600,7 @@ def start_from_demonstrations(
         "transitions": len(demos),
         "episodes_succeeded": demos.successes,
         "bc_action_mse": mse,
+        "ignored_inputs": ignored,
     }
     (out / "demonstrations.json").write_text(json.dumps(record, indent=2) + "\n")
     return record
@@ -607,6 +710,11 @@ def train(config: TrainConfig) -> dict:
     }
     venv = make_training_env(config, n_envs, normalize, env_kwargs, curriculum)
     checkpoint, done = _latest_checkpoint(ckpt_dir)
+    if checkpoint is None:
+        # A fresh run owns its curves: a folder trained into before (a shipped model's, say)
+        # must not lend it old points.
+        for stale in ("curve.csv", "bc_curve.csv", f"{BEST}/point.json"):
+            (out / stale).unlink(missing_ok=True)
     if checkpoint is not None:
         stats = ckpt_dir / f"vecnormalize_{done}_steps.pkl"
         if normalize and stats.is_file():

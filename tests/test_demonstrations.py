@@ -121,3 +121,55 @@ def test_behaviour_cloning_fits_the_actor_and_the_term_holds_it():
         model.actor.optimizer.step()  # only the behaviour-cloning gradient
     assert error() < 0.5 * drifted
     env.close()
+
+
+@pytest.mark.slow
+def test_noisy_demonstrations_execute_noise_and_keep_the_expert_labels():
+    """With noise the executed actions differ from the labels by about the noise, and the
+    labels are the scripted policy's own actions in the observed states (DART)."""
+    from pour_gym.agents.scripted import ScriptedPourPolicy
+
+    kwargs = {"objects": ["red_cup"]}
+    sigma = (0.0, 0.0, 0.0, 0.1)
+    demos = collect_demonstrations("PourGym/Pour-v0", kwargs, 1, seed=5, noise=sigma,
+                                   fill_margin=(40, 40), progress=False)  # fmt: skip
+    assert demos.expert_actions is not None and demos.labels is demos.expert_actions
+    diff = demos.actions - demos.expert_actions
+    assert np.all(diff[:, :3] == 0.0)  # no noise asked on the lip
+    inside = np.abs(demos.actions[:, 3]) < 1.0  # the clip at +-1 shortens the noise
+    assert 0.06 < diff[inside, 3].std() < 0.14
+    # Replaying the executed actions gives the same observations, and the scripted policy
+    # in them gives the labels.
+    env = gym.make("PourGym/Pour-v0", **kwargs)
+    obs, info = env.reset(seed=5, options={"near_target": False, "fill_margin": 40})
+    assert info["fill"] == info["target_amount"] + 40
+    policy = ScriptedPourPolicy()
+    for k in range(len(demos)):
+        assert np.array_equal(obs, demos.observations[k])
+        assert np.allclose(policy(obs), demos.expert_actions[k], atol=1e-6)
+        obs, *_ = env.step(demos.actions[k])
+    env.close()
+    with pytest.raises(Exception, match="noise"):
+        collect_demonstrations("PourGym/Pour-v0", kwargs, 1, seed=5, noise=-0.1)
+
+
+def test_inputs_the_demonstrations_never_vary_are_hidden_from_the_network():
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+    from pour_gym.agents.training import ignore_constant_inputs
+
+    venv = VecNormalize(DummyVecEnv([lambda: gym.make("Pendulum-v1")]), epsilon=0.1)
+    rng = np.random.default_rng(0)
+    obs = np.column_stack([rng.normal(size=200), np.full(200, 0.4), rng.normal(size=200)])
+    venv.obs_rms.update(obs)
+    venv.training = False
+    hidden = ignore_constant_inputs(venv, obs, names=["a", "radius", "c"])
+    assert hidden == ["radius"]
+    raw = np.array([[1.0, 0.4, 1.0], [1.0, 0.9, 1.0]])
+    seen = venv.normalize_obs(raw)
+    # Another cup's radius reads as the training cup's, to a millionth of an input's scale.
+    assert np.all(np.abs(seen[:, 1]) < 1e-6) and np.all(np.abs(seen[:, [0, 2]]) > 0.1)
+    assert np.allclose(seen[0], seen[1], atol=1e-6)
+    # SB3 un-normalises terminal observations for its replay buffer: they come back finite.
+    assert np.allclose(venv.unnormalize_obs(seen), raw, atol=1e-5)
+    venv.close()
