@@ -158,15 +158,15 @@ def collect_demonstrations(
         policy.reset()
         done = False
         while not done:
-            expert = np.asarray(policy(base.observe("features")), dtype=np.float64).copy()
-            action = np.clip(expert + sigma * rng.standard_normal(4), -1.0, 1.0)
+            clean = np.asarray(policy(base.observe("features")), dtype=np.float64).copy()
+            action = np.clip(clean + sigma * rng.standard_normal(4), -1.0, 1.0)
             if base.tilt_control == "angle":
-                expert[3] = rate_as_angle(expert[3], base)
+                clean[3] = rate_as_angle(clean[3], base)
                 action[3] = rate_as_angle(action[3], base)
             next_obs, reward, terminated, truncated, info = env.step(action.astype(np.float32))
             rows["obs"].append(obs)
             rows["act"].append(action)
-            rows["expert"].append(expert)
+            rows["expert"].append(clean)
             rows["rew"].append(reward)
             rows["next"].append(next_obs)
             rows["term"].append(float(terminated))

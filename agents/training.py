@@ -574,7 +574,9 @@ def start_from_demonstrations(
     ignored = []
     if demos_cfg.get("ignore_constant") or demos_cfg.get("hide"):
         if normaliser is None or not normaliser.norm_obs:
-            raise InputError("demonstrations' ignore_constant needs normalize: {norm_obs: true}")
+            raise InputError(
+                "demonstrations' ignore_constant and hide need normalize: {norm_obs: true}"
+            )
         names = venv.get_attr("obs_names")[0]
         ignored = ignore_constant_inputs(
             normaliser, demos.observations, names, also=demos_cfg.get("hide", ())
