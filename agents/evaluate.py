@@ -17,8 +17,7 @@ import numpy as np
 from tqdm import tqdm
 
 from pour_gym.agents.rollout import rollout
-
-POUR_ENVS = ("PourGym/Pour-v0",)
+from pour_gym.envs import POUR_ENV_IDS
 
 
 def evaluate_policy(
@@ -57,8 +56,8 @@ def evaluate_policy(
 
     objects = list(objects)
     if source_objects is not None or target_objects is not None:
-        if env_id not in POUR_ENVS:
-            raise ValueError(f"sources and targets are for {POUR_ENVS}, not {env_id}")
+        if env_id not in POUR_ENV_IDS:
+            raise ValueError(f"sources and targets are for {POUR_ENV_IDS}, not {env_id}")
         sources = list(source_objects if source_objects is not None else objects)
         targets = list(target_objects if target_objects is not None else objects)
         pairs = list(itertools.product(sources, targets))
@@ -69,7 +68,7 @@ def evaluate_policy(
     trained = set(trained_on)
     rows = []
     bar = tqdm(total=len(pairs) * episodes, desc=f"evaluate {env_id}", file=sys.stderr)
-    pour = env_id in POUR_ENVS
+    pour = env_id in POUR_ENV_IDS
     for k, (source, target) in enumerate(pairs):
         if pour:
             env = gym.make(

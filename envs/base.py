@@ -50,6 +50,8 @@ class PourGymEnv(gym.Env, EzPickle):
     """
 
     metadata: ClassVar[dict] = {"render_modes": RENDER_MODES, "render_fps": 10}
+    # Whether the world's containers get collision shapes (for an arm that touches them).
+    solid: ClassVar[bool] = False
 
     def __init__(
         self,
@@ -144,7 +146,9 @@ class PourGymEnv(gym.Env, EzPickle):
                 f"this {type(self).__name__} was closed; make a new environment to go on"
             )
         if self._world is None:
-            self._world = World(self.fluid, self.fluid_config, num_threads=self.num_threads)
+            self._world = World(
+                self.fluid, self.fluid_config, num_threads=self.num_threads, solid=self.solid
+            )
         return self._world
 
     def _place(self, roles: dict[str, str]) -> dict[str, Container]:

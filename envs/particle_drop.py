@@ -78,7 +78,8 @@ class ParticleDropEnv(PourGymEnv):
     * v0 (this release): the features from :mod:`pour_gym.features`; reward weights and
       ``num_threads`` are arguments; a user's mug of two overlapping bodies no longer
       leaves particles inside its base (its collision field is signed by where fluid
-      can be, not by ray parity).
+      can be, not by ray parity); a push out of a wall adds no more speed than the
+      particle and the wall brought (see Pour-v0).
     * v0 (first release).
     """
 

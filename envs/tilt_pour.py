@@ -80,7 +80,8 @@ class TiltPourEnv(PourGymEnv):
     * v0 (this release): the hydrostatic label measures from the mouth's lowest point (it
       measured from the lowest rim vertex, the outer edge of a thick rim, and called pours
       4 degrees early); f4 from :mod:`pour_gym.features`; reward weights and
-      ``num_threads`` are arguments.
+      ``num_threads`` are arguments; a push out of a wall adds no more speed than the
+      particle and the wall brought (see Pour-v0).
     * v0 (first release).
     """
 

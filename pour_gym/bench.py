@@ -352,7 +352,9 @@ def _env_rate(make, vector: str | None, steps: int, seed: int = 0) -> float:
     return rate
 
 
-def _pour_realtime(kwargs: dict, episodes: int, seed: int = 0) -> float:
+def _pour_realtime(
+    kwargs: dict, episodes: int, seed: int = 0, env_id: str = "PourGym/Pour-v0"
+) -> float:
     """Simulated s per wall s of the scripted policy's episode steps, red cup -> broad cup."""
     import time
 
@@ -360,9 +362,7 @@ def _pour_realtime(kwargs: dict, episodes: int, seed: int = 0) -> float:
 
     from pour_gym.agents.scripted import ScriptedPourPolicy
 
-    env = gym.make(
-        "PourGym/Pour-v0", source_objects="red_cup", target_objects="broad_cup", **kwargs
-    )
+    env = gym.make(env_id, source_objects="red_cup", target_objects="broad_cup", **kwargs)
     policy = ScriptedPourPolicy()
     steps, wall = 0, 0.0
     for k in range(episodes + 1):  # the first episode loads and compiles: not timed
@@ -387,9 +387,14 @@ def bench_envs(repeats: int = 3, steps: int = 600) -> dict:
     - ``pour_v0``: the scripted policy pouring from the red cup into the broad cup, episode
       steps only: simulated seconds per wall second (``realtime``), steps per second, and
       the same with the fill of 1000 particles the first release used (``realtime_1000``).
+    - ``panda_pour_v0``: the same episodes (same seeds, so the same fills) with the Panda
+      holding the cup, each timed run right after Pour-v0's; its speed over Pour-v0's
+      (``over_pour_v0``) is the median of the ratios of those pairs.
     - ``vec``: Pour-v0 env-steps per second under random actions, SB3's vector envs:
       ``dummy_1`` (one env in this process, default threads), ``one_thread`` (the same
-      with ``num_threads=1``), ``subproc_2`` and ``subproc_4`` (worker processes).
+      with ``num_threads=1``), ``subproc_2`` and ``subproc_4`` (worker processes); the
+      first three alternate run by run, and ``ratios`` are medians of the ratios within
+      each run's trio.
     - ``rows``: the one-step environments alone and vectorised by two (Gymnasium's).
 
     Args:
@@ -403,7 +408,7 @@ def bench_envs(repeats: int = 3, steps: int = 600) -> dict:
 
     import pour_gym  # noqa: F401 - registers the environments
 
-    cases = 2 + 4 + 2 * 3
+    cases = 3 + 4 + 2 * 3
     bar = tqdm(total=cases * repeats, desc="bench envs", file=sys.stderr)
 
     def median(fn) -> float:
@@ -413,16 +418,39 @@ def bench_envs(repeats: int = 3, steps: int = 600) -> dict:
             bar.update()
         return float(statistics.median(runs))
 
-    realtime = median(lambda r: _pour_realtime({}, 2, seed=100 * r))
+    # Pour-v0 and PandaPour-v0 alternate, run by run: the ratio is taken within each pair
+    # (this machine's speed drifts by 2x over minutes), and its median reported.
+    pairs = []
+    for r in range(repeats):
+        alone = _pour_realtime({}, 2, seed=100 * r)
+        bar.update()
+        held = _pour_realtime({}, 2, seed=100 * r, env_id="PourGym/PandaPour-v0")
+        bar.update()
+        pairs.append((alone, held))
+    realtime = float(statistics.median(a for a, _ in pairs))
+    panda = float(statistics.median(b for _, b in pairs))
+    panda_ratio = float(statistics.median(b / a for a, b in pairs))
     realtime_1000 = median(lambda r: _pour_realtime({"source_particles": 1000}, 2, seed=100 * r))
     pour = functools.partial(gym.make, "PourGym/Pour-v0")
     single = functools.partial(gym.make, "PourGym/Pour-v0", num_threads=1)
-    vec = {
-        "dummy_1": median(lambda r: _env_rate(pour, "dummy", steps, seed=r)),
-        "one_thread": median(lambda r: _env_rate(single, "dummy", steps, seed=r)),
-        "subproc_2": median(lambda r: _env_rate(pour, "subproc_2", steps, seed=r)),
-        "subproc_4": median(lambda r: _env_rate(pour, "subproc_4", steps, seed=r)),
-    }
+    # The cases a ratio is taken between alternate run by run, as above.
+    runs: dict[str, list[float]] = {"dummy_1": [], "one_thread": [], "subproc_2": []}
+    for r in range(repeats):
+        for name, make, mode in (
+            ("dummy_1", pour, "dummy"),
+            ("one_thread", single, "dummy"),
+            ("subproc_2", pour, "subproc_2"),
+        ):
+            runs[name].append(_env_rate(make, mode, steps, seed=r))
+            bar.update()
+    vec = {name: float(statistics.median(v)) for name, v in runs.items()}
+    vec["subproc_4"] = median(lambda r: _env_rate(pour, "subproc_4", steps, seed=r))
+    ratio_one = statistics.median(
+        b / a for a, b in zip(runs["one_thread"], runs["subproc_2"], strict=True)
+    )
+    ratio_default = statistics.median(
+        b / a for a, b in zip(runs["dummy_1"], runs["subproc_2"], strict=True)
+    )
     rows = []
     for env_id in ("PourGym/ParticleDrop-v0", "PourGym/TiltPour-v0"):
         make = functools.partial(gym.make, env_id)
@@ -436,10 +464,15 @@ def bench_envs(repeats: int = 3, steps: int = 600) -> dict:
             "steps_per_s": realtime / 0.1,
             "realtime_1000": realtime_1000,
         },
+        "panda_pour_v0": {
+            "realtime": panda,
+            "steps_per_s": panda / 0.1,
+            "over_pour_v0": panda_ratio,
+        },
         "vec": vec,
         "ratios": {
-            "subproc_2_over_one_thread": vec["subproc_2"] / vec["one_thread"],
-            "subproc_2_over_default": vec["subproc_2"] / vec["dummy_1"],
+            "subproc_2_over_one_thread": float(ratio_one),
+            "subproc_2_over_default": float(ratio_default),
         },
         "rows": rows,
     }
@@ -448,11 +481,14 @@ def bench_envs(repeats: int = 3, steps: int = 600) -> dict:
 def envs_table(result: dict) -> str:
     """Markdown tables of :func:`bench_envs`."""
     p, v, q = result["pour_v0"], result["vec"], result["ratios"]
+    a = result["panda_pour_v0"]
     lines = [
         "| Pour-v0, scripted policy, red cup -> broad cup | simulated s per wall s |",
         "|---|---:|",
         f"| defaults (fill T + 100) | {p['realtime']:.2f} |",
         f"| 1000 particles | {p['realtime_1000']:.2f} |",
+        f"| PandaPour-v0, the Panda holding the cup (defaults, the same episodes) | "
+        f"{a['realtime']:.2f} ({a['over_pour_v0']:.2f}x Pour-v0) |",
         "",
         "| Pour-v0, random actions, SB3 vector env | env-steps/s |",
         "|---|---:|",

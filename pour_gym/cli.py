@@ -14,6 +14,7 @@ import sys
 from collections.abc import Callable
 from pathlib import Path
 
+from pour_gym.envs import POUR_ENV_IDS
 from pour_gym.errors import ClosedContainerError, InputError, SimulationError
 from pour_gym.stdio import redirect_stdout_fd
 from pour_gym.texttable import text_table
@@ -339,8 +340,10 @@ def cmd_evaluate(args: argparse.Namespace) -> Output:
         from pour_gym.agents.scripted import ScriptedPourPolicy
         from pour_gym.agents.search import load_search
 
-        if args.env != POUR_ENV:
-            raise InputError("the scripted policy pours: use --env PourGym/Pour-v0")
+        if args.env not in POUR_ENV_IDS:
+            raise InputError(
+                f"the scripted policy pours: use --env with one of {', '.join(POUR_ENV_IDS)}"
+            )
         if args.policy == "scripted":
             policy = ScriptedPourPolicy()
         else:  # the best of a policy search, trained on the containers it searched on
@@ -434,6 +437,16 @@ def cmd_demo(args: argparse.Namespace) -> Output:
     summary["pour"] = {"info": pour["info"], "video": pour["video"]}
     text = summary.pop("text") + "\n" + pour["text"]
     return (summary, lambda: text)
+
+
+def cmd_episode(args: argparse.Namespace) -> Output:
+    """One episode of the scripted policy in a pouring task, as a GIF."""
+    from pour_gym.demo import pour_episode
+
+    episode = pour_episode(
+        Path(args.out), args.source, args.target, args.seed, args.target_amount, args.env
+    )
+    return ({"info": episode["info"], "video": episode["video"]}, lambda: episode["text"])
 
 
 def add_address(p: argparse.ArgumentParser, what: str) -> None:
@@ -599,6 +612,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--params", help="search.json of a policy search (closed-loop policy)")
     p.add_argument("--episodes", type=int, default=1, help="pours per cup (seeds seed, ...)")
     p.add_argument("--out", help="folder for poc_<policy>_<target>.json")
+
+    p = add("episode", cmd_episode, "one scripted episode of a pouring task as a GIF")
+    p.add_argument("--env", default=POUR_ENV, choices=POUR_ENV_IDS)
+    p.add_argument("--source", default="red_cup", help="held container")
+    p.add_argument("--target", default="broad_cup", help="container on the table")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--target-amount", type=int, help="particles to pour (default: random)")
+    p.add_argument("--out", default="docs", help="output folder")
 
     p = add("demo", cmd_demo, "rebuild a thesis object from a scan, then pour with it (GIF)")
     p.add_argument("--out", default="demo_out")

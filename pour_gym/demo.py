@@ -16,6 +16,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 
+from pour_gym.errors import InputError
 from pour_gym.fileio import save_mesh, save_point_cloud
 from pour_gym.modelgen import generate_model
 from pour_gym.objects import build_object
@@ -87,21 +88,27 @@ def run_demo(out: Path, obj: str = "red_cup") -> dict:
     }
 
 
+# The GIF each pouring task's episode is written to.
+EPISODE_VIDEOS = {"PourGym/Pour-v0": "pour_episode.gif", "PourGym/PandaPour-v0": "panda_pour.gif"}
+
+
 def pour_episode(
     out: Path,
     source: str = "red_cup",
     target: str = "broad_cup",
     seed: int = 0,
     target_amount: int | None = None,
+    env_id: str = "PourGym/Pour-v0",
 ) -> dict:
-    """Record one Pour-v0 episode of the scripted policy as a GIF.
+    """Record one episode of the scripted policy in a pouring task as a GIF.
 
     Args:
-        out: output folder (created).
+        out: output folder (created); the GIF is named by ``EPISODE_VIDEOS``.
         source: held container.
         target: container on the table.
         seed: episode seed.
         target_amount: particles to pour (random in the environment's range if None).
+        env_id: ``PourGym/Pour-v0`` or ``PourGym/PandaPour-v0`` (the arm holds the cup).
 
     Returns:
         The last step's info, the video path and a ``text`` for the terminal.
@@ -114,7 +121,9 @@ def pour_episode(
     from pour_gym.video import write_video
 
     out.mkdir(parents=True, exist_ok=True)
-    env = gym.make("PourGym/Pour-v0", render_mode="rgb_array")
+    if env_id not in EPISODE_VIDEOS:
+        raise InputError(f"the scripted policy pours in {', '.join(EPISODE_VIDEOS)}, not {env_id}")
+    env = gym.make(env_id, render_mode="rgb_array")
     policy = ScriptedPourPolicy()
     options = {"source": source, "target": target}
     if target_amount is not None:
@@ -124,9 +133,10 @@ def pour_episode(
     bar.close()
     env.close()
     info = episode.info
-    video = write_video(episode.frames, out / "pour_episode.gif", fps=10)
+    video = write_video(episode.frames, out / EPISODE_VIDEOS[env_id], fps=10)
     text = (
-        f"Pour-v0, scripted policy, {source} -> {target}: poured {info['poured']} particles "
+        f"{env_id.split('/')[1]}, scripted policy, {source} -> {target}: "
+        f"poured {info['poured']} particles "
         f"({info['poured_ml']:.1f} ml) for a target of {info['target_amount']} "
         f"({info['target_ml']:.1f} ml, tolerance {info['tolerance']}), spilled "
         f"{info['spilled']}, {'success' if info['is_success'] else 'failure'}\n"

@@ -24,6 +24,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
+from pour_gym.envs import POUR_ENV_IDS
 from pour_gym.errors import SimulationError
 
 FALSE_ENDING_TILT = 30.0  # deg
@@ -83,7 +84,7 @@ def soak(
 
     if objects is None:
         objects = [*CATALOGUE, *user_meshes(cache_dir("soak"))]
-    pour = env_id == "PourGym/Pour-v0"
+    pour = env_id in POUR_ENV_IDS
     totals = dict.fromkeys(
         ("episodes", "exceptions", "false_endings", "particles_lost", "wall_violations",
          "corrections", "steps"), 0,
@@ -161,7 +162,8 @@ def _episode(env, seed: int, steps: int, pour: bool) -> dict:
             if pour:
                 max_tilt = max(max_tilt, info["tilt_deg"])
             if terminated or truncated:
-                if pour and terminated and info["poured"] == 0:
+                # A failure (PandaPour-v0: the arm touched the target) is an ending.
+                if pour and terminated and info["poured"] == 0 and not info.get("failure"):
                     outside = info["fill"] - info["in_source"]
                     if outside <= FALSE_ENDING_OUTSIDE and max_tilt < FALSE_ENDING_TILT:
                         out["false_endings"] += 1

@@ -27,6 +27,7 @@ FAST = {
     "PourGym/Pour-v0": {"source_particles": 300, "amount_range": (40, 80)},
     "PourGym/ParticleDrop-v0": {},
     "PourGym/TiltPour-v0": {},
+    "PourGym/PandaPour-v0": {"source_particles": 300, "amount_range": (40, 80)},
 }
 
 
@@ -35,7 +36,12 @@ def make(env_id, **kwargs):
 
 
 def test_ids_are_registered():
-    assert set(ENV_IDS) == {"PourGym/Pour-v0", "PourGym/ParticleDrop-v0", "PourGym/TiltPour-v0"}
+    assert set(ENV_IDS) == {
+        "PourGym/Pour-v0",
+        "PourGym/ParticleDrop-v0",
+        "PourGym/TiltPour-v0",
+        "PourGym/PandaPour-v0",
+    }
     for env_id in ENV_IDS:
         assert env_id in gym.registry
 

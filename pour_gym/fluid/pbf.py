@@ -9,8 +9,10 @@ artificial cohesion), with the paper's artificial pressure ``s_corr`` against cl
 project out of the containers' walls through their signed-distance fields, posed at the
 substep's end by interpolating each container between its pose at the last step and its
 current one (a particle whose path crossed into a wall is put back on the side it came
-from, and counted); update velocities from the displacement, and smooth them with XSPH
-viscosity.
+from, and counted); update velocities from the displacement (of which a push out of a
+wall contributes no more than the particle's own motion in the substep plus the fastest
+wall's: a particle found deep in a scan's fold is moved out, not flung off), and smooth
+them with XSPH viscosity.
 
 The kernel runs on one thread (compiled without a threading layer, so a process may fork
 after using it) or on several (numba's parallel loops); see :func:`default_threads`.
@@ -619,8 +621,9 @@ def _pass_correct(src, dst, nbr, nbr_count, pair_g, pair_s, lam, wall_on, wall, 
 
 
 def _pass_collide(p, src, prev, x, vn, hs, limit, radius, floor, has_floor, corrected, values,
-                  offs, dims, origins, spacings, rot_s, tr_s, rot_e, tr_e):  # fmt: skip
+                  offs, dims, origins, spacings, rot_s, tr_s, rot_e, tr_e, wall_speed):  # fmt: skip
     """Positions from ``src`` into ``p``, limited, out of the walls; displacement velocities."""
+    wall_travel = wall_speed * hs
     for i in nb.prange(p.shape[0]):
         for a in range(3):
             p[i, a] = src[i, a]
@@ -631,9 +634,10 @@ def _pass_collide(p, src, prev, x, vn, hs, limit, radius, floor, has_floor, corr
         d = np.sqrt(dx * dx + dy * dy + dz * dz)
         if d > limit:
             f = limit / d
-            p[i, 0] = prev[i, 0] + f * dx
-            p[i, 1] = prev[i, 1] + f * dy
-            p[i, 2] = prev[i, 2] + f * dz
+            dx, dy, dz, d = f * dx, f * dy, f * dz, limit
+            p[i, 0] = prev[i, 0] + dx
+            p[i, 1] = prev[i, 1] + dy
+            p[i, 2] = prev[i, 2] + dz
         for k in range(offs.shape[0]):
             corrected[i] += _collide_one(
                 p, prev, i, k, radius, values, offs, dims, origins, spacings, rot_s, tr_s,
@@ -641,8 +645,18 @@ def _pass_collide(p, src, prev, x, vn, hs, limit, radius, floor, has_floor, corr
             )  # fmt: skip
         if has_floor and p[i, 2] < floor + radius:
             p[i, 2] = floor + radius
-        for a in range(3):
-            vn[i, a] = (p[i, a] - x[i, a]) / hs
+        # The push out of a wall moves the particle, but gives it no more speed than it
+        # came in with plus the wall's: a push out of a fold deeper than its own motion (a
+        # scan's wall folds, a crevice) would otherwise fling it out of the container.
+        ex = p[i, 0] - prev[i, 0] - dx
+        ey = p[i, 1] - prev[i, 1] - dy
+        ez = p[i, 2] - prev[i, 2] - dz
+        e = np.sqrt(ex * ex + ey * ey + ez * ez)
+        most = d + wall_travel
+        s = most / e if e > most else 1.0
+        vn[i, 0] = (prev[i, 0] + dx + s * ex - x[i, 0]) / hs
+        vn[i, 1] = (prev[i, 1] + dy + s * ey - x[i, 1]) / hs
+        vn[i, 2] = (prev[i, 2] + dz + s * ez - x[i, 2]) / hs
 
 
 def _pass_finish(x, v, vn, p, nbr, nbr_count, h, xsph, floor, has_floor, radius, decay):
@@ -730,7 +744,8 @@ def _advance(
             _pass_correct(src, dst, nbr, nbr_count, pair_g, pair_s, lam, wall_on, wall, omega)
             src, dst = dst, src
         _pass_collide(p, src, prev, x, vn, hs, limit, radius, floor, has_floor, corrected,
-                      values, offs, dims, origins, spacings, rot_s, tr_s, rot_e, tr_e)  # fmt: skip
+                      values, offs, dims, origins, spacings, rot_s, tr_s, rot_e, tr_e,
+                      wall_speed)  # fmt: skip
         _pass_finish(x, v, vn, p, nbr, nbr_count, h, xsph, floor, has_floor, radius,
                      np.exp(-floor_decay * hs))  # fmt: skip
         t += hs

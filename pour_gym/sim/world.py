@@ -156,6 +156,9 @@ class World:
             the user cache).
         num_threads: threads of the PBF fluid (``None``: one per core this process may
             use, one in a worker process; see :func:`pour_gym.fluid.pbf.default_threads`).
+        solid: give the containers' bodies collision shapes (V-HACD convex pieces, as the
+            ``bullet`` fluid's) with the PBF fluid too, for worlds where something else
+            collides with them (an arm); the PBF fluid itself collides through fields.
     """
 
     def __init__(
@@ -165,10 +168,12 @@ class World:
         table: bool = True,
         sdf_cache: str | Path | None = None,
         num_threads: int | None = None,
+        solid: bool = False,
     ):
         if fluid not in FLUIDS:
             raise InputError(f"unknown fluid {fluid!r}; use one of {', '.join(FLUIDS)}")
         self.fluid_kind = fluid
+        self.solid = bool(solid)
         self.config = config or PBFConfig()
         self.sdf_cache = Path(sdf_cache) if sdf_cache is not None else cache_dir("sdf")
         with redirect_stdout_fd():
@@ -176,6 +181,7 @@ class World:
         self.client.setGravity(0.0, 0.0, -9.81)
         self.containers: list[Container] = []
         self.table = table
+        self.table_body: int | None = None  # the table's pybullet body
         if table:
             shape = self.client.createCollisionShape(pybullet.GEOM_PLANE)
             visual = self.client.createVisualShape(
@@ -184,7 +190,7 @@ class World:
                 rgbaColor=TABLE_COLOR,
                 visualFramePosition=[0.0, 0.0, -0.005],
             )
-            self.client.createMultiBody(0.0, shape, visual)
+            self.table_body = self.client.createMultiBody(0.0, shape, visual)
         empty = np.empty((0, 3))
         floor = 0.0 if table else None
         self.fluid: PBFluid | BulletFluid
@@ -221,7 +227,7 @@ class World:
             sdf = container_field(asset, self.sdf_cache)
         rot, pos = as_rotation(rotation), np.asarray(position, dtype=np.float64)
         convex = None
-        if isinstance(self.fluid, BulletFluid):
+        if self.solid or isinstance(self.fluid, BulletFluid):
             with redirect_stdout_fd():  # V-HACD reports its progress on stdout
                 convex = convex_parts(self.client, asset.mesh, self.sdf_cache)
         body = mesh_body(
