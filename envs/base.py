@@ -70,15 +70,13 @@ class PourGymEnv(gym.Env, EzPickle):
             raise ValueError(f"num_threads must be at least 1 (or None), not {num_threads}")
         if isinstance(fluid_config, dict):
             fluid_config = PBFConfig(**fluid_config)
-        bad = {k: w for k, w in reward_weights.items() if not np.isfinite(w)}
-        if bad:
-            raise ValueError(f"reward weights must be finite numbers, got {bad}")
+        self.reward_weights: dict[str, float] = {}
+        self._add_reward_weights(reward_weights)
         self.fluid = fluid
         self.fluid_config = fluid_config or PBFConfig()
         self.num_threads = None if num_threads is None else int(num_threads)
         self.render_mode = render_mode
         self.camera = camera
-        self.reward_weights = {k: float(w) for k, w in reward_weights.items()}
         self._world: World | None = None
         self._assets: dict[str, LabelledAsset] = {}
         self._fields: dict[str, SignedDistanceField] = {}
@@ -89,6 +87,17 @@ class PourGymEnv(gym.Env, EzPickle):
         self._started = False
 
     # ------------------------------------------------------------------ arguments
+    def _add_reward_weights(self, weights: dict[str, float]) -> None:
+        """Take reward terms' weights (a subclass adds its own terms' this way).
+
+        Raises:
+            ValueError: a weight is not a finite number.
+        """
+        bad = {k: w for k, w in weights.items() if not np.isfinite(w)}
+        if bad:
+            raise ValueError(f"reward weights must be finite numbers, got {bad}")
+        self.reward_weights.update({k: float(w) for k, w in weights.items()})
+
     @staticmethod
     def _check_obs_mode(obs_mode: str) -> str:
         if obs_mode not in OBS_MODES:

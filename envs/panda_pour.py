@@ -107,11 +107,7 @@ class PandaPourEnv(PourEnv):
             collision_weight=collision_weight,
             **kwargs,
         )
-        extra = {"joint_limit": joint_limit_weight, "collision": collision_weight}
-        bad = {k: w for k, w in extra.items() if not np.isfinite(w)}
-        if bad:
-            raise ValueError(f"reward weights must be finite numbers, got {bad}")
-        self.reward_weights.update({k: float(w) for k, w in extra.items()})
+        self._add_reward_weights({"joint_limit": joint_limit_weight, "collision": collision_weight})
         self.control = control
         self.obs_names = self.obs_names + JOINT_NAMES
         n = len(self.obs_names)
@@ -120,6 +116,7 @@ class PandaPourEnv(PourEnv):
             self.action_space = spaces.Box(-1.0, 1.0, (len(ARM_JOINTS),), np.float32)
         self._panda: Panda | None = None
         self._grasps: dict[str, Grasp] = {}
+        self._q = np.zeros(len(ARM_JOINTS))  # the joints the arm was last set to, rad
         self._qd = np.zeros(len(ARM_JOINTS))
         self._clipped = np.zeros(len(ARM_JOINTS), dtype=bool)
         self._lip_error = 0.0
@@ -169,7 +166,8 @@ class PandaPourEnv(PourEnv):
         panda.set_joints(panda.rest, fingers=0.5 * g.width)
         goal = self._hand_goal(self.lip, self.tilt)
         seeds = [panda.rest] + [panda.rest + np.array(d) for d in SEED_OFFSETS]
-        panda.set_joints(panda.reach(*goal, seeds))
+        self._q = panda.reach(*goal, seeds)
+        panda.set_joints(self._q)
         self._qd = np.zeros(len(ARM_JOINTS))
         self._clipped = np.zeros(len(ARM_JOINTS), dtype=bool)
         self._failed = None
@@ -195,7 +193,7 @@ class PandaPourEnv(PourEnv):
     def _move_source(self, a: np.ndarray) -> None:
         """Joint targets for the action, reached within the arm's limits; the source follows."""
         panda = self.panda
-        q0 = panda.joints
+        q0 = self._q
         if self.control == "ee":
             lip, tilt = self.commanded(a)
             pose = self._hand_goal(lip, tilt)
@@ -203,6 +201,7 @@ class PandaPourEnv(PourEnv):
         else:
             q, self._clipped = panda.limit(q0 + a * panda.max_velocity * self.dt, self.dt)
         panda.set_joints(q)
+        self._q = q
         self._qd = (q - q0) / self.dt
         self._follow_hand()
         if self.control == "ee":
@@ -228,9 +227,8 @@ class PandaPourEnv(PourEnv):
         return self._failed
 
     def _extra_terms(self) -> dict[str, float]:
-        q = self.panda.joints
         return {
-            "joint_limit": -float(np.mean(self.panda.at_limit(q))),
+            "joint_limit": -float(np.mean(self.panda.at_limit(self._q))),
             "collision": -1.0 if self._failed else 0.0,
         }
 
@@ -241,7 +239,7 @@ class PandaPourEnv(PourEnv):
 
     def observe(self, obs_mode: str) -> np.ndarray:
         """Pour-v0's observation in either mode, then the joints (see ``JOINT_NAMES``)."""
-        arm = self.panda.normalised(self.panda.joints, self._qd)
+        arm = self.panda.normalised(self._q, self._qd)
         arm = np.clip(arm, -OBS_LIMIT, OBS_LIMIT).astype(np.float32)
         return np.concatenate([super().observe(obs_mode), arm])
 
