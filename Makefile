@@ -12,7 +12,7 @@ TORCH_SPEC ?= torch==2.13.0
 TORCH_PIP_ARGS ?=
 DEMO_OUT ?= demo_out
 
-.PHONY: demo test install install-rllib install-dev lint bench clean
+.PHONY: demo test check docs install install-rllib lint bench clean
 
 $(VENV)/.stamp-base:
 	$(PYTHON) -m venv $(VENV)
@@ -37,8 +37,9 @@ $(RLLIB_VENV)/.stamp-install: pyproject.toml
 install-rllib: $(RLLIB_VENV)/.stamp-install
 
 demo: install
-	$(PY) -m pour_gym.cli demo --out $(DEMO_OUT)
+	$(PY) -m pour_gym.apps.cli demo --out $(DEMO_OUT)
 
+# Everything, as CI runs it (after `make lint`): slow tests, RLlib, the docs site.
 test: install install-rllib
 	$(PY) -m pytest -q
 
@@ -46,8 +47,16 @@ lint: install
 	$(VENV)/bin/ruff check .
 	$(VENV)/bin/ruff format --check .
 
+# The edit-test loop: ruff, then the tests not marked slow.
+check: lint
+	$(PY) -m pytest -q -m "not slow" --deselect tests/test_rllib.py
+
+# The documentation site (docs/, mkdocs.yml) into site/; a broken link or page fails.
+docs: install
+	$(VENV)/bin/mkdocs build --strict
+
 bench: install
-	$(PY) -m pour_gym.cli bench reconstruct
+	$(PY) -m pour_gym.apps.cli bench reconstruct
 
 clean:
-	rm -rf $(VENV) $(RLLIB_VENV) $(DEMO_OUT) build *.egg-info
+	rm -rf $(VENV) $(RLLIB_VENV) $(DEMO_OUT) build site *.egg-info

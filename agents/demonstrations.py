@@ -1,7 +1,7 @@
 """Demonstrations for off-policy learners on Pour-v0: the scripted policy's episodes.
 
 A learner that must find by chance that pouring a little and stopping earns the success
-bonus seldom finds it (see the README's "Learning Pour-v0"). The scripted policy
+bonus seldom finds it (see docs/learning.md). The scripted policy
 (:mod:`pour_gym.agents.scripted`) does it on every thesis container. This module records
 its episodes as transitions, keeps them in the replay buffer beside the learner's own
 (:class:`DemoReplayBuffer`: a fixed share of every batch, as in RLPD, Ball et al. 2023)
@@ -24,6 +24,7 @@ than the one trajectory of the training cup.
 from __future__ import annotations
 
 import sys
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import gymnasium as gym
@@ -33,8 +34,9 @@ from stable_baselines3.common.buffers import ReplayBuffer
 from stable_baselines3.common.type_aliases import ReplayBufferSamples
 from tqdm import tqdm
 
-from pour_gym.agents.curriculum import TrainingStarts
+from pour_gym.agents.rollout import Step, rollout
 from pour_gym.agents.scripted import ScriptedPourPolicy
+from pour_gym.envs import make, task_of
 from pour_gym.envs.pour import UPRIGHT_BAND
 from pour_gym.errors import InputError
 
@@ -98,8 +100,7 @@ def collect_demonstrations(
     env_kwargs: dict,
     episodes: int,
     seed: int,
-    near_target: float = 0.0,
-    fill_margin: tuple[int, int] | None = None,
+    wrapper: Callable[[gym.Env], gym.Env] | None = None,
     noise: float | tuple[float, ...] = 0.0,
     expert: dict | None = None,
     progress: bool = True,
@@ -108,17 +109,17 @@ def collect_demonstrations(
 
     The scripted policy reads the features whatever the env's ``obs_mode``; the
     observations recorded are the env's own, so a state agent's demonstrations hold
-    state observations. Episodes start as the training curriculum's do
-    (:class:`~pour_gym.agents.curriculum.TrainingStarts`, seeded by ``seed``).
+    state observations. Episodes start as the training's do: the env is wrapped as the
+    recipe wraps its training envs (e.g. the curriculum
+    :class:`~pour_gym.agents.curriculum.TrainingStarts`, seeded by ``seed``).
 
     Args:
         env_id: a Pour-v0 id (the scripted policy pours).
         env_kwargs: the training env's arguments (containers, reward weights, tilt control).
         episodes: how many episodes.
         seed: the first episode's reset seed (episode k uses seed + k).
-        near_target: the share of episodes that start with the lip over the target.
-        fill_margin: (lo, hi) particles of fill beyond the target amount, drawn per
-            episode, or None for the env's own fill.
+        wrapper: wraps the env as the training's are (the recipe's ``env_wrapper``), or
+            None.
         noise: standard deviation of the Gaussian noise added to the executed actions
             (one value, or one per action dimension), in action units; the expert's clean
             actions are kept as :attr:`Demonstrations.expert_actions`.
@@ -132,18 +133,17 @@ def collect_demonstrations(
     Raises:
         InputError: an env the scripted policy cannot act in, or a negative noise.
     """
-    import pour_gym  # noqa: F401 - registers the environments
-
     if episodes < 1:
         raise InputError(f"demonstrations need at least one episode, not {episodes}")
     sigma = np.broadcast_to(np.asarray(noise, dtype=np.float64), (4,))
     if np.any(sigma < 0) or not np.all(np.isfinite(sigma)):
         raise InputError(f"demonstration noise must be finite and >= 0, not {noise}")
-    env = TrainingStarts(gym.make(env_id, **env_kwargs), near_target, fill_margin)
+    if not task_of(env_id).pours:
+        raise InputError(f"the scripted policy pours from a source into a target, not in {env_id}")
+    env = make(env_id, **env_kwargs)
+    if wrapper is not None:
+        env = wrapper(env)
     base = env.unwrapped
-    if not hasattr(base, "observe"):
-        env.close()
-        raise InputError(f"the scripted policy pours in Pour-v0, not in {env_id}")
     try:
         policy = ScriptedPourPolicy(**(expert or {}))
     except TypeError as exc:
@@ -153,25 +153,30 @@ def collect_demonstrations(
     rows: dict[str, list] = {k: [] for k in ("obs", "act", "expert", "rew", "next", "term")}
     successes = 0
     bar = tqdm(total=episodes, desc="demonstrations", file=sys.stderr, disable=not progress)
+    clean = [np.zeros(4)]  # the expert's action at the current step
+
+    def noisy_expert(_obs: np.ndarray) -> np.ndarray:
+        """The expert's action with noise; the expert reads the features, whatever the obs."""
+        clean[0] = np.asarray(policy(base.observe("features")), dtype=np.float64).copy()
+        action = np.clip(clean[0] + sigma * rng.standard_normal(4), -1.0, 1.0)
+        if base.tilt_control == "angle":
+            clean[0][3] = rate_as_angle(clean[0][3], base)
+            action[3] = rate_as_angle(action[3], base)
+        return action.astype(np.float32)
+
+    noisy_expert.reset = policy.reset  # type: ignore[attr-defined]
+
+    def record(step: Step) -> None:
+        rows["obs"].append(step.obs)
+        rows["act"].append(step.action)
+        rows["expert"].append(clean[0])
+        rows["rew"].append(step.reward)
+        rows["next"].append(step.next_obs)
+        rows["term"].append(float(step.terminated))
+
     for k in range(episodes):
-        obs, _ = env.reset(seed=seed + k)
-        policy.reset()
-        done = False
-        while not done:
-            clean = np.asarray(policy(base.observe("features")), dtype=np.float64).copy()
-            action = np.clip(clean + sigma * rng.standard_normal(4), -1.0, 1.0)
-            if base.tilt_control == "angle":
-                clean[3] = rate_as_angle(clean[3], base)
-                action[3] = rate_as_angle(action[3], base)
-            next_obs, reward, terminated, truncated, info = env.step(action.astype(np.float32))
-            rows["obs"].append(obs)
-            rows["act"].append(action)
-            rows["expert"].append(clean)
-            rows["rew"].append(reward)
-            rows["next"].append(next_obs)
-            rows["term"].append(float(terminated))
-            obs, done = next_obs, terminated or truncated
-        successes += bool(info["is_success"])
+        episode = rollout(env, noisy_expert, seed=seed + k, on_step=record)
+        successes += bool(episode.info["is_success"])
         bar.update(1)
         bar.set_postfix(success=f"{successes}/{k + 1}")
     bar.close()
@@ -330,9 +335,9 @@ def regularise_actor(
 
     The term is ``weight`` times the negative log-likelihood of a batch of demonstrated
     actions under the actor's squashed Gaussian: it holds both the mean and the spread of
-    the actor near what was demonstrated (a term on the mean alone, measured, let the
-    spread grow until the learner's own episodes rarely succeeded and its deterministic
-    policy drifted off the demonstrations: 1 success in 6 at 20k steps). The normaliser's
+    the actor near what was demonstrated (a term on the mean alone let the spread grow
+    until the learner's own episodes rarely succeeded and its deterministic policy drifted
+    off the demonstrations). The normaliser's
     statistics must stay fixed (the demonstrations are normalised once, here).
 
     Args:

@@ -3,7 +3,7 @@
 A policy is anything that maps an observation to an action (see
 :mod:`pour_gym.agents.rollout`): an SB3 model, the scripted policy, or a parameterised
 policy from policy search. Objects the policy never trained on are marked, which is the
-generalisation the thesis argues for. For Pour-v0 the rows are (source, target) pairs:
+generalisation the thesis argues for. For the pouring tasks the rows are (source, target) pairs:
 each object as both (the default), or every source with every target (a matrix).
 """
 
@@ -17,7 +17,8 @@ import numpy as np
 from tqdm import tqdm
 
 from pour_gym.agents.rollout import rollout
-from pour_gym.envs import POUR_ENV_IDS
+from pour_gym.envs import make, mean_metrics, task_of
+from pour_gym.report.tables import markdown_table
 
 
 def evaluate_policy(
@@ -36,28 +37,28 @@ def evaluate_policy(
     Args:
         policy: observation -> action (``reset()`` called at every episode if it has one).
         env_id: a registered ``PourGym/`` id.
-        objects: containers (names or mesh paths); for Pour-v0 each is the source and the
-            target of its row.
+        objects: containers (names or mesh paths); for a pouring task each is the source
+            and the target of its row.
         episodes: episodes per row.
         seed: seed of the first episode (row k, episode e uses ``seed + k * episodes + e``).
         env_kwargs: more keyword arguments for ``gymnasium.make``.
         trained_on: objects the policy was trained on (marked in the rows).
-        source_objects: Pour-v0: sources of a matrix of rows (with ``target_objects``).
-        target_objects: Pour-v0: targets of a matrix of rows (default: ``objects``).
+        source_objects: a pouring task: sources of a matrix of rows (with
+            ``target_objects``).
+        target_objects: a pouring task: targets of a matrix of rows (default: ``objects``).
 
     Returns:
-        ``{"env", "episodes", "rows": [{"object", "source", "target", "trained_on",
-        "success", "reward", "amount_error", "spilled", "corrections"}...], "mean": {...}}``;
-        the Pour-v0 columns are None for the one-step environments.
+        ``{"env", "episodes", "rows": [{"object", "source", "target", "trained_on", and
+        the task's metrics and diagnostics (:class:`pour_gym.envs.task.Task`: "success",
+        "return", and for a pouring task "amount_error", "spilled", "corrections"), each
+        the mean over the row's episodes}...], "mean": {the metrics' means over the rows}}``;
+        ``target`` is None for the one-container tasks.
     """
-    import gymnasium as gym
-
-    import pour_gym  # noqa: F401 - registers the environments
-
+    task = task_of(env_id)
     objects = list(objects)
     if source_objects is not None or target_objects is not None:
-        if env_id not in POUR_ENV_IDS:
-            raise ValueError(f"sources and targets are for {POUR_ENV_IDS}, not {env_id}")
+        if not task.pours:
+            raise ValueError(f"sources and targets are for the pouring tasks, not {env_id}")
         sources = list(source_objects if source_objects is not None else objects)
         targets = list(target_objects if target_objects is not None else objects)
         pairs = list(itertools.product(sources, targets))
@@ -68,45 +69,29 @@ def evaluate_policy(
     trained = set(trained_on)
     rows = []
     bar = tqdm(total=len(pairs) * episodes, desc=f"evaluate {env_id}", file=sys.stderr)
-    pour = env_id in POUR_ENV_IDS
     for k, (source, target) in enumerate(pairs):
-        if pour:
-            env = gym.make(
-                env_id, source_objects=[source], target_objects=[target], **(env_kwargs or {})
-            )
+        if task.pours:
+            containers = {"source_objects": [source], "target_objects": [target]}
         else:
-            env = gym.make(env_id, objects=[source], **(env_kwargs or {}))
-        results = []
+            containers = {"objects": [source]}
+        env = make(env_id, **containers, **(env_kwargs or {}))
+        metrics = []
         for ep in range(episodes):  # the bar counts episodes, as its total does
-            results.append(rollout(env, policy, seed=seed + k * episodes + ep))
+            episode = rollout(env, policy, seed=seed + k * episodes + ep)
+            metrics.append({**episode.metrics(task), **task.diagnostics(episode.info)})
             bar.update()
         env.close()
-        infos = [r.info for r in results]
         rows.append(
             {
                 "object": source if source == target else f"{source} -> {target}",
                 "source": source,
-                "target": target if pour else None,
-                "trained_on": source in trained and (target in trained or not pour),
-                "success": float(np.mean([i["is_success"] for i in infos])),
-                "reward": float(np.mean([r.reward for r in results])),
-                "amount_error": float(
-                    np.mean([abs(i["poured"] - i["target_amount"]) for i in infos])
-                )
-                if pour
-                else None,
-                "spilled": float(np.mean([i["spilled"] for i in infos])) if pour else None,
-                "corrections": float(np.mean([i["fluid_corrections"] for i in infos]))
-                if pour
-                else None,
+                "target": target if task.pours else None,
+                "trained_on": source in trained and (target in trained or not task.pours),
+                **mean_metrics(metrics),
             }
         )
     bar.close()
-    mean = {
-        key: float(np.mean([r[key] for r in rows]))
-        for key in ("success", "reward", "amount_error", "spilled")
-        if rows[0][key] is not None
-    }
+    mean = mean_metrics({key: r[key] for key in task.metric_names} for r in rows)
     unseen = [r for r in rows if not r["trained_on"]]
     if unseen and len(unseen) < len(rows):
         mean["success_unseen"] = float(np.mean([r["success"] for r in unseen]))
@@ -115,19 +100,22 @@ def evaluate_policy(
 
 def evaluation_table(result: dict) -> str:
     """Markdown table of :func:`evaluate_policy` (objects trained on marked with *)."""
-    lines = [
-        "| object | success | mean reward | mean amount error (particles) | mean spilled |",
-        "|---|---:|---:|---:|---:|",
-    ]
+    pours = task_of(result["env"]).pours
+    header = ["object", "success", "mean return"]
+    if pours:
+        header += ["mean amount error (particles)", "mean spilled"]
+    rows = []
     for r in result["rows"]:
-        name = r["object"] + (" *" if r["trained_on"] else "")
-        err = "" if r["amount_error"] is None else f"{r['amount_error']:.1f}"
-        spill = "" if r["spilled"] is None else f"{r['spilled']:.1f}"
-        lines.append(f"| {name} | {r['success']:.2f} | {r['reward']:.2f} | {err} | {spill} |")
+        row = [r["object"] + (" *" if r["trained_on"] else ""), f"{r['success']:.2f}",
+               f"{r['return']:.2f}"]  # fmt: skip
+        if pours:
+            row += [f"{r['amount_error']:.1f}", f"{r['spilled']:.1f}"]
+        rows.append(row)
     m = result["mean"]
-    err = f"{m['amount_error']:.1f}" if "amount_error" in m else ""
-    spill = f"{m['spilled']:.2f}" if "spilled" in m else ""
-    lines.append(f"| **mean** | **{m['success']:.2f}** | {m['reward']:.2f} | {err} | {spill} |")
+    last = ["**mean**", f"**{m['success']:.2f}**", f"{m['return']:.2f}"]
+    if pours:
+        last += [f"{m['amount_error']:.1f}", f"{m['spilled']:.2f}"]
+    lines = [markdown_table(header, [*rows, last], align="l" + "r" * (len(header) - 1))]
     if "success_unseen" in m:
         lines.append(f"\nsuccess on containers never trained on: {m['success_unseen']:.2f}")
     lines.append("\n\\* trained on this object")

@@ -17,14 +17,17 @@ from pathlib import Path
 
 import numpy as np
 
+from pour_gym.agents.cluster import map_tasks, ray_session
+from pour_gym.agents.rollout import rollout
 from pour_gym.assets import SPLITS
-from pour_gym.cluster import map_tasks, ray_session
+from pour_gym.envs import PARTICLE_DROP_V0, TILT_POUR_V0, make
 from pour_gym.errors import InputError
+from pour_gym.report.tables import markdown_table
 from pour_gym.warp.classifiers import LogisticRegression
 
 EXPERIMENTS = {
-    "drop": ("PourGym/ParticleDrop-v0", ("f1", "f2", "f3")),
-    "tilt": ("PourGym/TiltPour-v0", ("f4",)),
+    "drop": (PARTICLE_DROP_V0, ("f1", "f2", "f3")),
+    "tilt": (TILT_POUR_V0, ("f4",)),
 }
 TRAIN_OBJECT = "red_cup"
 MAX_FPR = 0.01
@@ -65,21 +68,17 @@ def collect_chunk(task: dict) -> tuple[list, list]:
     Args:
         task: ``env_id``, ``object`` (a container) and ``seeds`` (one episode each).
     """
-    import gymnasium as gym
+    env = make(task["env_id"], objects=[task["object"]])
 
-    import pour_gym  # noqa: F401 - registers the environments
+    def abstain(_obs: np.ndarray) -> np.ndarray:
+        # The action does not change what happens, only the reward: the data is the label.
+        return np.zeros(1, dtype=np.float32)
 
-    env = gym.make(task["env_id"], objects=[task["object"]])
-    feats, labels = [], []
     try:
-        for s in task["seeds"]:
-            env.reset(seed=s)
-            _, _, _, _, info = env.step(np.zeros(1, dtype=np.float32))
-            feats.append(info["features"])
-            labels.append(info["label"])
+        infos = [rollout(env, abstain, seed=s).info for s in task["seeds"]]
     finally:
         env.close()
-    return feats, labels
+    return [i["features"] for i in infos], [i["label"] for i in infos]
 
 
 def collect(
@@ -98,7 +97,7 @@ def collect(
         episodes: episodes per object.
         seed: seed of the first episode (each episode has its own).
         address: run chunks of episodes as Ray tasks there (``local``, ``auto`` or
-            ``HOST:PORT``, see :mod:`pour_gym.cluster`); None: here, one after another.
+            ``HOST:PORT``, see :mod:`pour_gym.agents.cluster`); None: here, one after another.
             The dataset is the same either way.
         chunk: episodes per task.
 
@@ -209,18 +208,14 @@ def plot_roc(result: dict, title: str, path: str | Path) -> Path:
     return path
 
 
-def markdown_table(result: dict) -> str:
+def results_table(result: dict) -> str:
     """AUC and TPR at FPR <= 1 % per object."""
-    lines = [
-        "| object | episodes | positives | AUC | TPR at FPR <= 1 % |",
-        "|---|---:|---:|---:|---:|",
-    ]
-    for name in result["auc"]:
-        lines.append(
-            f"| {name} | {result['episodes'][name]} | {result['positives'][name]:.2f} | "
-            f"{result['auc'][name]:.3f} | {result['tpr_at_fpr_0.01'][name]:.3f} |"
-        )
-    return "\n".join(lines)
+    rows = [
+        [name, result["episodes"][name], f"{result['positives'][name]:.2f}",
+         f"{result['auc'][name]:.3f}", f"{result['tpr_at_fpr_0.01'][name]:.3f}"]
+        for name in result["auc"]
+    ]  # fmt: skip
+    return markdown_table(["object", "episodes", "positives", "AUC", "TPR at FPR <= 1 %"], rows)
 
 
 def run_experiment(
@@ -270,7 +265,16 @@ def run_experiment(
         "files": {"png": str(png), "dataset": str(dataset)},
     }
     (out / f"results_{experiment}.json").write_text(json.dumps(doc, indent=2) + "\n")
-    table = markdown_table(result)
-    (out / f"results_{experiment}.md").write_text(table + "\n")
+    table = results_table(result)
+    objects_flag = (
+        "" if tuple(objects) == tuple(SPLITS["all"]) else f" --objects {','.join(objects)}"
+    )
+    command = f"pour-gym experiment {experiment} --episodes {episodes} --seed {seed}{objects_flag}"
+    page = (
+        f"# {title}\n\nWritten by `{command} --out {out}`: the logistic regression trained on "
+        f"the {TRAIN_OBJECT} alone, evaluated on every object.\n\n{table}\n\n"
+        f"![ROC curves]({png.name})\n"
+    )
+    (out / f"results_{experiment}.md").write_text(page)
     doc["table"] = table
     return doc

@@ -27,9 +27,11 @@ from tqdm import tqdm
 
 from pour_gym.agents.rollout import rollout
 from pour_gym.agents.scripted import approach_lip
+from pour_gym.envs import POUR_V0
 from pour_gym.envs.pour import FEATURE_NAMES, UPRIGHT_DEG
 from pour_gym.errors import InputError
 from pour_gym.features import cavity_points, held_volume
+from pour_gym.report.tables import markdown_table
 
 _I = {name: k for k, name in enumerate(FEATURE_NAMES)}
 POC_OBJECTS = (
@@ -163,13 +165,14 @@ def _episode(env, policy, source: str, seed: int, target_amount: int) -> dict:
     """
     pouring = [0]
 
-    def stop(info: dict) -> bool:
+    def stop(step) -> bool:
+        info = step.info
         pouring[0] += int(info["in_source"] < info["fill"] and policy.phase != "back")
         # A pour that never started would run to the time limit otherwise.
         return policy.phase == "back" and info["tilt_deg"] < UPRIGHT_DEG and info["in_flight"] == 0
 
     options = {"source": source, "target": TARGET_CONTAINER, "target_amount": target_amount}
-    episode = rollout(env, policy, seed=seed, options=options, stop=stop, keep_infos=True)
+    episode = rollout(env, policy, seed=seed, options=options, on_step=stop, keep_infos=True)
     max_tilt = max(i["tilt_deg"] for i in episode.infos)
     return {**episode.info, "max_tilt_deg": max_tilt, "pouring_s": pouring[0] * env.unwrapped.dt}
 
@@ -290,7 +293,7 @@ def run_poc(
     if episodes < 1:
         raise InputError(f"episodes must be at least 1, not {episodes}")
     offset, _ = choose_lip_offset(seed)
-    env = gym.make("PourGym/Pour-v0", amount_range=(1, 1000))
+    env = gym.make(POUR_V0, amount_range=(1, 1000))
     extra: dict = {}
     if policy == "thesis":
         model, extra["estimate_samples"] = learn_estimate(env, offset, samples, seed)
@@ -351,19 +354,17 @@ def run_poc(
 
 def poc_table(doc: dict) -> str:
     """Table 6.1 with the thesis's rows (target 20 particles) beside ours."""
-    lines = [
-        "| object | seed | delta | duration | target | outcome | error | inside | outside | "
-        "thesis delta | thesis duration | thesis outcome |",
-        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
-    ]
+    header = ["object", "seed", "delta", "duration", "target", "outcome", "error", "inside",
+              "outside", "thesis delta", "thesis duration", "thesis outcome"]  # fmt: skip
+    rows = []
     for r in doc["rows"]:
         t = r["thesis"] or {}
-        lines.append(
-            f"| {r['object']} | {r['seed']} | {r['delta_deg']:.1f} | {r['duration_s']:.1f} s | "
-            f"{r['target']} | {r['outcome']} | {r['error']} | {r['inside']} | "
-            f"{r['outside']} | {t.get('delta_deg', '')} | {t.get('duration_s', '')} | "
-            f"{t.get('outcome', '')} |"
-        )
+        rows.append([
+            r["object"], r["seed"], f"{r['delta_deg']:.1f}", f"{r['duration_s']:.1f} s",
+            r["target"], r["outcome"], r["error"], r["inside"], r["outside"],
+            t.get("delta_deg", ""), t.get("duration_s", ""), t.get("outcome", ""),
+        ])  # fmt: skip
+    lines = [markdown_table(header, rows)]
     lines.append(
         f"\n{doc['policy']} policy, target {doc['target']} particles "
         f"({doc['target_ml']:.3g} ml): mean absolute error {doc['mean_abs_error']:.2f} "

@@ -25,6 +25,7 @@ import json
 import os
 import sys
 
+from pour_gym.envs import TILT_POUR_V0
 from pour_gym.errors import InputError
 
 RLLIB_EXTRA = "pip install 'pour-gym[rllib]'"
@@ -155,7 +156,7 @@ def ppo_iteration(
 def main(argv: list[str] | None = None) -> int:
     """``python -m pour_gym.agents.rllib``: one PPO iteration; exit 2 on bad input."""
     p = argparse.ArgumentParser(description="one RLlib PPO iteration on a pour-gym env")
-    p.add_argument("--env", default="PourGym/TiltPour-v0")
+    p.add_argument("--env", default=TILT_POUR_V0)
     p.add_argument("--env-runners", type=int, default=2)
     p.add_argument("--env-config", type=json.loads, default={}, help="JSON of env arguments")
     p.add_argument("--batch-size", type=int, default=128)

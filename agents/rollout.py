@@ -8,11 +8,15 @@ of every episode (the :class:`Policy` protocol).
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Protocol, runtime_checkable
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from pour_gym.envs.task import Task
 
 
 @runtime_checkable
@@ -29,6 +33,31 @@ class Policy(Protocol):
 
 
 @dataclass
+class Step:
+    """One step of an episode, as a rollout's ``on_step`` hook sees it.
+
+    Attributes:
+        obs: the observation the action was chosen from.
+        action: the action taken.
+        reward: the step's reward.
+        next_obs: the observation after the step.
+        terminated: whether the step ended the episode (Gymnasium's ``terminated``).
+        truncated: whether the step cut the episode short (Gymnasium's ``truncated``).
+        info: the step's info.
+        index: steps taken so far, this one included.
+    """
+
+    obs: np.ndarray
+    action: np.ndarray
+    reward: float
+    next_obs: np.ndarray
+    terminated: bool
+    truncated: bool
+    info: dict
+    index: int
+
+
+@dataclass
 class Episode:
     """What one episode gave.
 
@@ -36,6 +65,8 @@ class Episode:
         info: the last step's info.
         reward: the return (sum of rewards).
         steps: steps taken.
+        reset_info: the reset's info.
+        step_seconds: wall time spent inside ``env.step``, s.
         infos: every step's info (when asked for).
         frames: a picture after the reset and after every step (when asked for).
     """
@@ -43,8 +74,14 @@ class Episode:
     info: dict
     reward: float
     steps: int
+    reset_info: dict = field(default_factory=dict)
+    step_seconds: float = 0.0
     infos: list[dict] = field(default_factory=list)
     frames: list[np.ndarray] = field(default_factory=list)
+
+    def metrics(self, task: Task) -> dict[str, float]:
+        """The episode's metrics as its env's task defines them (success, return, ...)."""
+        return task.metrics(self.info, self.reward)
 
 
 def rollout(
@@ -52,10 +89,9 @@ def rollout(
     policy: Callable[[np.ndarray], np.ndarray],
     seed: int | None = None,
     options: dict | None = None,
-    stop: Callable[[dict], bool] | None = None,
+    on_step: Callable[[Step], bool | None] | None = None,
     keep_infos: bool = False,
     frames: bool = False,
-    progress: Callable[[], None] | None = None,
 ) -> Episode:
     """Run one episode.
 
@@ -64,10 +100,10 @@ def rollout(
         policy: observation -> action (its ``reset()`` is called first, if it has one).
         seed: the reset's seed.
         options: the reset's options.
-        stop: ends the episode early when it returns true for a step's info.
+        on_step: called after every step with the :class:`Step`; the episode ends early
+            when it returns True (a recorder, a progress bar, a check, a stop rule).
         keep_infos: keep every step's info.
         frames: keep ``env.render()`` after the reset and after every step.
-        progress: called after every step (a progress bar's update).
 
     Returns:
         The episode.
@@ -75,12 +111,15 @@ def rollout(
     obs, info = env.reset(seed=seed, options=options)
     if hasattr(policy, "reset"):
         policy.reset()
-    episode = Episode(info=info, reward=0.0, steps=0)
+    episode = Episode(info=info, reward=0.0, steps=0, reset_info=info)
     if frames:
         episode.frames.append(env.render())
     done = False
     while not done:
-        obs, reward, terminated, truncated, info = env.step(policy(obs))
+        action = policy(obs)
+        start = time.perf_counter()
+        next_obs, reward, terminated, truncated, info = env.step(action)
+        episode.step_seconds += time.perf_counter() - start
         episode.reward += float(reward)
         episode.steps += 1
         episode.info = info
@@ -88,9 +127,13 @@ def rollout(
             episode.infos.append(info)
         if frames:
             episode.frames.append(env.render())
-        if progress is not None:
-            progress()
-        done = terminated or truncated or (stop is not None and stop(info))
+        stop = False
+        if on_step is not None:
+            step = Step(obs, action, float(reward), next_obs, terminated, truncated, info,
+                        episode.steps)  # fmt: skip
+            stop = on_step(step) is True
+        obs = next_obs
+        done = terminated or truncated or stop
     return episode
 
 

@@ -20,10 +20,11 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
+from pour_gym.agents.cluster import map_tasks, ray_session
 from pour_gym.agents.rollout import rollout
 from pour_gym.agents.scripted import ScriptedPourPolicy
 from pour_gym.assets import expand_containers
-from pour_gym.cluster import map_tasks, ray_session
+from pour_gym.envs import POUR_V0
 from pour_gym.errors import InputError
 
 # Searched parameters: name, lower bound, upper bound (CMA-ES works in [0, 1] per axis).
@@ -114,7 +115,7 @@ def score_candidate(task: dict) -> float:
 
     import pour_gym  # noqa: F401 - registers the environments
 
-    env = gym.make("PourGym/Pour-v0", **task["env_kwargs"])
+    env = gym.make(POUR_V0, **task["env_kwargs"])
     amount = task["target_amount"]
     u = task["u"]
     policy = (
@@ -158,7 +159,7 @@ def search(
         target_amount: pour this many particles in every episode, and tell the policy.
         target_objects: the containers to pour into (default: ``objects``).
         address: evaluate each generation's candidates as Ray tasks there (``local``,
-            ``auto`` or ``HOST:PORT``, see :mod:`pour_gym.cluster`); None: one after
+            ``auto`` or ``HOST:PORT``, see :mod:`pour_gym.agents.cluster`); None: one after
             another here. The result is the same either way.
 
     Returns:

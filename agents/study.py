@@ -17,9 +17,9 @@ from pathlib import Path
 
 import numpy as np
 
+from pour_gym.envs import POUR_V0
 from pour_gym.errors import InputError
-
-POUR = "PourGym/Pour-v0"
+from pour_gym.report.tables import markdown_table
 
 
 def _load_runs(roots: list[Path]) -> dict[str, dict[str, list[dict]]]:
@@ -127,7 +127,7 @@ def pour_matrix(run_dir: Path, episodes: int = 2, objects: tuple[str, ...] | Non
     run = load_run(run_dir / "model.zip")
     result = evaluate_policy(
         sb3_policy(run),
-        POUR,
+        POUR_V0,
         episodes=episodes,
         env_kwargs=run.env_kwargs(),
         trained_on=run.trained_on(),
@@ -204,7 +204,7 @@ def study_report(
         "`train.py`'s evaluation, never used in training).",
         "",
         "Reproduce: `sh docs/generalisation/run.sh` (the one-step environments) and the",
-        "headline Pour-v0 runs in the README.",
+        "headline Pour-v0 runs in docs/learning.md.",
         "",
     ]
     for env, modes in sorted(runs.items()):
@@ -222,17 +222,13 @@ def study_report(
                 "container" + (" per seed (mean ± standard deviation over seeds)"
                                if len(group) > 1 else "")
             )  # fmt: skip
-        lines += [
-            "",
-            "| container | " + " | ".join(ordered) + " |",
-            "|---|" + "---:|" * len(ordered),
-        ]
+        rows = []
         success = {m: _success(modes[m]) for m in ordered}
         seen = {r["object"]: r["trained_on"] for r in modes[ordered[0]][0]["eval"]["rows"]}
         for name, was_trained in seen.items():
             cells = [_cell(success[m][name]) if name in success[m] else "" for m in ordered]
             mark = " (trained)" if was_trained else ""
-            lines.append(f"| {name}{mark} | " + " | ".join(cells) + " |")
+            rows.append([f"{name}{mark}", *cells])
         for m in ordered:
             unseen = [success[m][n] for n, t in seen.items() if not t and n in success[m]]
             trained = [success[m][n] for n, t in seen.items() if t and n in success[m]]
@@ -247,15 +243,15 @@ def study_report(
                 if unseen and len(per_seed) > 1
                 else None,
             }
-        lines.append(
-            "| mean over unseen | "
-            + " | ".join(_cell(np.atleast_1d(summary[env][m]["unseen_per_seed"]))
-                         if summary[env][m]["unseen"] is not None else "" for m in ordered)
-            + " |"
-        )  # fmt: skip
+        rows.append([
+            "mean over unseen",
+            *(_cell(np.atleast_1d(summary[env][m]["unseen_per_seed"]))
+              if summary[env][m]["unseen"] is not None else "" for m in ordered),
+        ])  # fmt: skip
+        lines += ["", markdown_table(["container", *ordered], rows)]
         png = _plot(env, modes, out / f"{env.split('/')[-1]}.png")
         lines += ["", f"![{env}]({png.name})", ""]
-        if env == POUR:
+        if env == POUR_V0:
             # The matrix is one run's per mode (the first seed's): it costs 81 pairs of
             # episodes per run.
             matrices = {m: pour_matrix(modes[m][0]["dir"], matrix_episodes) for m in ordered}
@@ -266,10 +262,8 @@ def study_report(
                 f"Each of the nine thesis objects as the source and as the target, "
                 f"{matrix_episodes} episodes per pair.",
                 "",
-                "| obs_mode | success over all pairs | success, source and target both unseen "
-                "| mean amount error (particles) | mean spilled |",
-                "|---|---:|---:|---:|---:|",
             ]
+            rows = []
             for m in ordered:
                 doc = matrices[m]
                 seen_objects = set(expand_containers(modes[m][0]["config"]["objects"]))
@@ -283,10 +277,12 @@ def study_report(
                     "spilled": doc["mean"]["spilled"],
                 }
                 s = summary[env][m]["matrix"]
-                lines.append(
-                    f"| {m} | {s['success']:.2f} | {s['success_unseen_pairs']:.2f} | "
-                    f"{s['amount_error']:.1f} | {s['spilled']:.2f} |"
-                )
+                rows.append([m, f"{s['success']:.2f}", f"{s['success_unseen_pairs']:.2f}",
+                             f"{s['amount_error']:.1f}", f"{s['spilled']:.2f}"])  # fmt: skip
+            header = ["obs_mode", "success over all pairs",
+                      "success, source and target both unseen",
+                      "mean amount error (particles)", "mean spilled"]  # fmt: skip
+            lines += [markdown_table(header, rows)]
             lines += ["", f"![success per source and target]({heat.name})", ""]
     (out / "report.md").write_text("\n".join(lines) + "\n")
     (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")

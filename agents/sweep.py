@@ -30,9 +30,10 @@ from pathlib import Path
 
 import yaml
 
-from pour_gym.agents.training import TrainConfig, hyperparameters, train
-from pour_gym.cluster import node_id, ray_session
+from pour_gym.agents.cluster import node_id, ray_session
+from pour_gym.agents.training import TrainConfig, algorithm, load_recipe, train
 from pour_gym.errors import InputError
+from pour_gym.report.tables import markdown_table
 
 FIELDS = {f.name for f in dataclasses.fields(TrainConfig)} - {"out"}
 NODE_FILE = "node.json"
@@ -77,8 +78,8 @@ def trials(fixed: dict, grid: dict[str, list], out: str | Path) -> list[TrainCon
 
 def _cpus(config: TrainConfig) -> int:
     """CPUs a trial reserves: the environments it runs (the recipe's ``n_envs``)."""
-    params = {**hyperparameters(config.env, config.algo), **config.overrides}
-    return max(int(params.get("n_envs", 1)), 1)
+    recipe = load_recipe(config.env, config.algo, algorithm(config.algo), config.overrides)
+    return max(recipe.n_envs, 1)
 
 
 def run_trial(config: TrainConfig) -> dict:
@@ -154,12 +155,12 @@ def sweep(spec_path: str | Path, out: str | Path, address: str | None = None) ->
 
 
 def sweep_table(doc: dict, grid_fields: list[str]) -> str:
-    """A markdown table: the varied fields, mean success and mean reward per trial."""
-    head = [*grid_fields, "success", "mean reward", "run"]
-    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    """A markdown table: the varied fields, mean success and mean return per trial."""
+    head = [*grid_fields, "success", "mean return", "run"]
+    rows = []
     for trial in doc["trials"]:
         mean = trial["eval"]["mean"]
         cells = [str(trial["config"][f]) for f in grid_fields]
-        cells += [f"{mean['success']:.2f}", f"{mean['reward']:.2f}", trial["run_dir"]]
-        lines.append("| " + " | ".join(cells) + " |")
-    return "\n".join(lines)
+        cells += [f"{mean['success']:.2f}", f"{mean['return']:.2f}", trial["run_dir"]]
+        rows.append(cells)
+    return markdown_table(head, rows, align="l" * len(head))

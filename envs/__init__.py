@@ -6,26 +6,43 @@
     import pour_gym  # noqa: F401
     env = gym.make("PourGym/Pour-v0", objects="train")
 
-``ENV_IDS`` lists the registered ids, ``POUR_ENV_IDS`` those of the pouring tasks.
+The environments are listed once, in :mod:`pour_gym.envs.registry` (``ENVS``; ``ENV_IDS``
+their ids, and a constant per id). Each names its :class:`~pour_gym.envs.task.Task`
+(``task_of``): what an episode is and how it is scored.
 """
 
-from gymnasium.envs.registration import register, registry
-
-ENV_IDS: tuple[str, ...] = (
-    "PourGym/Pour-v0",
-    "PourGym/ParticleDrop-v0",
-    "PourGym/TiltPour-v0",
-    "PourGym/PandaPour-v0",
+from pour_gym.envs.registry import (
+    ENV_IDS,
+    ENVS,
+    PANDA_POUR_V0,
+    PARTICLE_DROP_V0,
+    POUR_V0,
+    TILT_POUR_V0,
+    EnvEntry,
+    entry,
+    make,
+    register_envs,
+    task_of,
 )
-# The pouring tasks (a source poured into a target; their episodes have both).
-POUR_ENV_IDS: tuple[str, ...] = ("PourGym/Pour-v0", "PourGym/PandaPour-v0")
-_ENTRY_POINTS = {
-    "PourGym/Pour-v0": ("pour_gym.envs.pour:PourEnv", 250),
-    "PourGym/ParticleDrop-v0": ("pour_gym.envs.particle_drop:ParticleDropEnv", 1),
-    "PourGym/TiltPour-v0": ("pour_gym.envs.tilt_pour:TiltPourEnv", 1),
-    "PourGym/PandaPour-v0": ("pour_gym.envs.panda_pour:PandaPourEnv", 250),
-}
+from pour_gym.envs.task import DROP, POUR, TILT, Task, mean_metrics
 
-for _id, (_entry, _steps) in _ENTRY_POINTS.items():
-    if _id not in registry:
-        register(id=_id, entry_point=_entry, max_episode_steps=_steps)
+__all__ = [
+    "DROP",
+    "ENVS",
+    "ENV_IDS",
+    "PANDA_POUR_V0",
+    "PARTICLE_DROP_V0",
+    "POUR",
+    "POUR_V0",
+    "TILT",
+    "TILT_POUR_V0",
+    "EnvEntry",
+    "Task",
+    "entry",
+    "make",
+    "mean_metrics",
+    "register_envs",
+    "task_of",
+]
+
+register_envs()

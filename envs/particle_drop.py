@@ -7,6 +7,7 @@ from gymnasium import spaces
 from gymnasium.utils import EzPickle
 
 from pour_gym.envs.base import PourGymEnv
+from pour_gym.envs.task import DROP
 from pour_gym.features import fill_fraction, relative_distance_height
 from pour_gym.fluid.pbf import PBFConfig
 from pour_gym.sim import Camera
@@ -82,6 +83,8 @@ class ParticleDropEnv(PourGymEnv):
       particle and the wall brought (see Pour-v0).
     * v0 (first release).
     """
+
+    task = DROP
 
     def __init__(
         self,

@@ -8,6 +8,8 @@ from gymnasium.utils import EzPickle
 from scipy.spatial.transform import Rotation
 
 from pour_gym.envs.base import PourGymEnv
+from pour_gym.envs.holders import make_holder
+from pour_gym.envs.task import POUR
 from pour_gym.features import ContainerGeometry, fluid_features, relative_distance_height
 from pour_gym.fluid.pbf import PBFConfig
 from pour_gym.sim import Camera
@@ -158,6 +160,8 @@ class PourEnv(PourGymEnv):
     | ``tilt_weight`` | float | 0.0 | weight of ``tilt`` |
     | ``control_weight`` | float | 0.0 | weight of ``control`` |
     | ``render_mode`` | str or None | None | ``"rgb_array"`` or ``"human"`` |
+    | ``holder`` | str | ``"free"`` | what holds the source (:mod:`pour_gym.envs.holders`) |
+    | ``**holder_kwargs`` | | | the holder's own arguments |
 
     ``reset(options=...)`` accepts ``source``, ``target`` (names or mesh paths),
     ``target_amount`` (particles), ``near_target`` (true: the lip starts over the near
@@ -181,9 +185,12 @@ class PourEnv(PourGymEnv):
       differ from before in their last bits); a push out of a wall no longer adds more
       speed than the particle and the wall brought (particles found in the folds of a
       scanned mug were flung out of it: the scripted policy spilled 5.7 per episode
-      from the YCB mug).
+      from the YCB mug); ``holder`` added (``"free"``, this env; ``"panda"`` is
+      PandaPour-v0).
     * v0 (first release): 1000 particles, six 1/60 s fluid steps per step.
     """
+
+    task = POUR
 
     def __init__(
         self,
@@ -212,6 +219,8 @@ class PourEnv(PourGymEnv):
         tilt_weight: float = 0.0,
         control_weight: float = 0.0,
         render_mode: str | None = None,
+        holder: str = "free",
+        **holder_kwargs,
     ):
         EzPickle.__init__(
             self,
@@ -240,7 +249,11 @@ class PourEnv(PourGymEnv):
             tilt_weight=tilt_weight,
             control_weight=control_weight,
             render_mode=render_mode,
+            holder=holder,
+            **holder_kwargs,
         )
+        self.holder = make_holder(holder, **holder_kwargs)
+        self.solid = self.holder.solid
         super().__init__(
             fluid,
             fluid_config,
@@ -257,6 +270,7 @@ class PourEnv(PourGymEnv):
                 "upright": upright_weight,
                 "tilt": tilt_weight,
                 "control": control_weight,
+                **self.holder.reward_weights(),
             },
         )
         self._check_obs_mode(obs_mode)
@@ -290,9 +304,10 @@ class PourEnv(PourGymEnv):
         self.pour_steps = int(pour_steps)
         self.dt = 0.1
         names = FEATURE_NAMES if obs_mode == "features" else STATE_NAMES
-        self.obs_names = names
-        self.observation_space = spaces.Box(-OBS_LIMIT, OBS_LIMIT, (len(names),), np.float32)
-        self.action_space = spaces.Box(-1.0, 1.0, (4,), np.float32)
+        self.obs_names = names + self.holder.obs_names
+        n = len(self.obs_names)
+        self.observation_space = spaces.Box(-OBS_LIMIT, OBS_LIMIT, (n,), np.float32)
+        self.action_space = self.holder.action_space()
 
     # ------------------------------------------------------------------ episode
     def reset(self, *, seed: int | None = None, options: dict | None = None):
@@ -312,7 +327,7 @@ class PourEnv(PourGymEnv):
         self.target_pos = np.array([rng.uniform(0.15, 0.25), rng.uniform(-0.1, 0.1), 0.0])
         rot_t = Rotation.from_euler("z", self.target_yaw).as_matrix()
         self.world.teleport(self.target, self.target_pos, rot_t)
-        self.source_base_rotation, self._lip_local = self._source_frame(gs)
+        self.source_base_rotation, self.lip_local = self.holder.source_frame(gs)
         self.z_min = gt.height + gs.height + 0.01
         self.lip = np.array([0.0, 0.0, self.z_min + rng.uniform(0.0, 0.05)])
         if options.get("near_target"):
@@ -322,7 +337,7 @@ class PourEnv(PourGymEnv):
             offset = np.array([-0.5, 0.0]) + rng.uniform(-0.4, 0.4, 2)
             self.lip[:2] = centre[:2] + offset * gt.rim_radius
         self.tilt = 0.0
-        self._hold_source()
+        self.holder.hold(self)
         v = self.world.particle_volume
         capacity_s = int(0.6 * gs.cavity_volume / v)
         capacity_t = int(0.6 * gt.cavity_volume / v)
@@ -364,12 +379,13 @@ class PourEnv(PourGymEnv):
         self._substeps = 0
         self._counts = self._count()
         self._potentials = self._potential()
+        self.camera = self.holder.camera(self) or self.camera
         return self._observation(), self._info()
 
     def step(self, action):
         """Move and tilt the source for ``dt`` = 0.1 s of simulated time."""
         a = self._check_action(action)
-        self._move_source(a)
+        self.holder.move(self, a)
         self._substeps = self.world.step(self.dt)
         self._corrections = self.world.corrections
         prev, c = self._counts, self._count()
@@ -379,7 +395,7 @@ class PourEnv(PourGymEnv):
         self._poured_any = self._poured_any or self._out_run >= self.pour_steps
         settled = c["in_flight"] == 0
         upright = self.tilt < UPRIGHT_DEG
-        failure = self._failure()
+        failure = self.holder.failure(self)
         ended = settled and ((self._poured_any and upright) or c["in_source"] == 0)
         terminated = bool(failure or ended)
         success = terminated and not failure and self._succeeded()
@@ -394,8 +410,8 @@ class PourEnv(PourGymEnv):
             "aim": potentials["aim"] - self._potentials["aim"],
             "upright": potentials["upright"] - self._potentials["upright"],
             "tilt": potentials["tilt"] - self._potentials["tilt"],
-            "control": self._control_cost(a),
-            **self._extra_terms(),
+            "control": self.holder.control_cost(self, a),
+            **self.holder.reward_terms(self),
         }
         self._potentials = potentials
         reward, weighted = self._reward(terms)
@@ -421,43 +437,11 @@ class PourEnv(PourGymEnv):
             tilt = self.tilt + np.clip(goal - self.tilt, -most, most)
         return lip, float(np.clip(tilt, 0.0, self.max_tilt))
 
-    def _source_frame(self, gs: ContainerGeometry) -> tuple[np.ndarray, np.ndarray]:
-        """The source's upright rotation and its lip in its frame (m).
-
-        Turned half a turn about the vertical, so that the handle (on +x in a container's
-        frame) is away from the target and the lip is the rim point on its -x side.
-        """
-        rotation = Rotation.from_euler("z", np.pi).as_matrix()
-        return rotation, np.array([gs.rim_center[0] - gs.rim_radius, gs.rim_center[1], gs.height])
-
-    def _hold_source(self) -> None:
-        """At reset: put the source at the lip and tilt (here by itself, held by nothing)."""
-        self.world.teleport(self.source, *self.source_pose(self.lip, self.tilt))
-
-    def _move_source(self, a: np.ndarray) -> None:
-        """Send the source where the action says, for the end of this step."""
-        self.lip, self.tilt = self.commanded(a)
-        # The fluid moves the source there smoothly over the step, in as many substeps as
-        # the motion needs.
-        self.world.set_pose(self.source, *self.source_pose(self.lip, self.tilt))
-
-    def _control_cost(self, a: np.ndarray) -> float:
-        """The ``control`` term: -(mean square of the lip velocity actions)."""
-        return -float(np.mean(a[:3] ** 2))
-
-    def _failure(self) -> str | None:
-        """Why the episode failed at this step, if it did (nothing fails Pour-v0 early)."""
-        return None
-
-    def _extra_terms(self) -> dict[str, float]:
-        """Reward terms a subclass adds (unweighted, by the names of its weights)."""
-        return {}
-
     # ------------------------------------------------------------------ helpers
     def source_pose(self, lip: np.ndarray, tilt_deg: float) -> tuple[np.ndarray, np.ndarray]:
         """The source's (position, rotation) with its lip at ``lip`` (m), tilted (deg)."""
         rot = self.source_rotation(tilt_deg)
-        return lip - rot @ self._lip_local, rot
+        return lip - rot @ self.lip_local, rot
 
     def source_rotation(self, tilt_deg: float) -> np.ndarray:
         """The source's rotation at a tilt (deg) towards +x, its lip facing the target."""
@@ -567,7 +551,12 @@ class PourEnv(PourGymEnv):
                 c["spilled"] / n0,
                 t / n0,
             ]
-        return np.clip(np.asarray(obs, dtype=np.float32), -OBS_LIMIT, OBS_LIMIT)
+        obs = np.clip(np.asarray(obs, dtype=np.float32), -OBS_LIMIT, OBS_LIMIT)
+        held = self.holder.observation(self)
+        if held is None:
+            return obs
+        held = np.clip(held, -OBS_LIMIT, OBS_LIMIT).astype(np.float32)
+        return np.concatenate([obs, held])
 
     def _info(self, terms: dict | None = None, success: bool = False) -> dict:
         """The step's (or reset's) info: the episode, the counts, the reward's terms."""
@@ -588,7 +577,12 @@ class PourEnv(PourGymEnv):
             "fluid_substeps": self._substeps,
             **(terms or {}),
             "is_success": bool(success),
+            **self.holder.info(),
         }
 
     def __repr__(self) -> str:
-        return f"PourEnv(sources={self.sources}, targets={self.targets}, obs_mode={self.obs_mode})"
+        held = "" if self.holder.name == "free" else f", holder={self.holder.describe()}"
+        return (
+            f"PourEnv(sources={self.sources}, targets={self.targets}, "
+            f"obs_mode={self.obs_mode}{held})"
+        )

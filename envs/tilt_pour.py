@@ -8,6 +8,7 @@ from gymnasium.utils import EzPickle
 from scipy.spatial.transform import Rotation
 
 from pour_gym.envs.base import PourGymEnv
+from pour_gym.envs.task import TILT
 from pour_gym.features import cavity_points, fluid_features, mouth_volume
 from pour_gym.fluid.pbf import PBFConfig
 from pour_gym.sim import Camera
@@ -84,6 +85,8 @@ class TiltPourEnv(PourGymEnv):
       particle and the wall brought (see Pour-v0).
     * v0 (first release).
     """
+
+    task = TILT
 
     def __init__(
         self,

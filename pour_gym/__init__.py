@@ -1,35 +1,32 @@
 """pour-gym: Gymnasium environments for learning to pour, with warped part features.
 
-The package follows one direction of data (the design in the README)::
+The package follows one direction of data::
 
-    scan -> mesh -> labels -> features -> asset -> world -> env -> agent
+    scan -> mesh -> labels -> features -> asset -> world -> env -> agent -> app
 
-Each stage lives in its own module and works on plain data (numpy arrays, trimesh meshes,
-small dataclasses):
+Each stage lives in its own subpackage and works on plain data (numpy arrays, trimesh
+meshes, small dataclasses); a package imports only from those below it
+(``python tests/test_layers.py`` prints the graph):
 
-- :mod:`pour_gym.objects`: the thesis's nine containers as parametric meshes with labels,
-  and meshes made the way users' are (two bodies, thin walls, capped scans).
-- :mod:`pour_gym.scan`: a simulated turntable depth scan.
-- :mod:`pour_gym.gaussian_field`, :mod:`pour_gym.reconstruct`, :mod:`pour_gym.modelgen`:
-  chapter 3, Gaussian-kernel implicit surface, marching cubes, Laplacian smoothing, and
-  the report against ground truth.
-- :mod:`pour_gym.measure`: container geometry measured from a mesh (height, rim radius,
-  holding volume, whether it has an opening, Chamfer distance).
-- :mod:`pour_gym.warp`: chapter 4, canonical frame, local features, classifiers, label
-  transfer.
-- :mod:`pour_gym.features`: chapter 5.1, container geometry and the fluid features f1-f4
-  (the one definition the environments use).
-- :mod:`pour_gym.assets`: the labelled asset format, labelling, the catalogue;
-  :mod:`pour_gym.fileio` reads and writes clouds and meshes; :mod:`pour_gym.cache`.
-- :mod:`pour_gym.fluid`: the position-based fluid in numba, signed-distance colliders, the
-  rigid-sphere reference backend.
-- :mod:`pour_gym.sim`: the pybullet world (a client per world), spawning, census, camera,
-  scripted scenes.
-- :mod:`pour_gym.envs`: the Gymnasium environments (``PourGym/...``).
+- :mod:`pour_gym.apps`: the ``pour-gym`` command line, benchmarks, the soak, the demo.
 - :mod:`pour_gym.agents`: rollouts, scripted and searched policies, the thesis's
-  experiments and proof of concept, SB3 training, evaluation, studies.
-- :mod:`pour_gym.cli` (the ``pour-gym`` command), :mod:`pour_gym.bench`,
-  :mod:`pour_gym.render`, :mod:`pour_gym.video`.
+  experiments and proof of concept, SB3 training, evaluation, studies, Ray.
+- :mod:`pour_gym.envs`: the Gymnasium environments (``PourGym/...``), their registry,
+  tasks and the holders of the source container.
+- :mod:`pour_gym.sim`: the pybullet world (a client per world), spawning, census,
+  camera, scripted scenes, the Panda arm.
+- :mod:`pour_gym.fluid`: the position-based fluid in numba, signed-distance colliders,
+  the rigid-sphere reference backend.
+- :mod:`pour_gym.assets`: the labelled asset format, labelling, the catalogue.
+- :mod:`pour_gym.warp` (chapter 4: canonical frame, local features, classifiers, label
+  transfer) and :mod:`pour_gym.features` (chapter 5.1: container geometry, f1-f4).
+- :mod:`pour_gym.mesh`: chapter 3 (scan, implicit surface, marching cubes, smoothing,
+  the report), meshes measured, clouds and meshes read and written.
+- :mod:`pour_gym.objects`: the thesis's nine containers as parametric meshes with labels,
+  and meshes made the way users' are.
+- :mod:`pour_gym.report`: tables, pictures, videos.
+- :mod:`pour_gym.io`, :mod:`pour_gym.errors`, :mod:`pour_gym.parts`: the cache folder and
+  output redirection, the errors, the part labels.
 """
 
 __version__ = "0.1.0"

@@ -31,10 +31,11 @@ import trimesh
 
 from pour_gym.errors import ClosedContainerError, InputError, NoWaterError
 from pour_gym.features import ContainerGeometry, container_cavity, container_geometry
-from pour_gym.fileio import MESH_SUFFIXES, load_mesh, validate_mesh
-from pour_gym.measure import opening_problem
+from pour_gym.mesh.fileio import MESH_SUFFIXES, load_mesh, validate_mesh
+from pour_gym.mesh.measure import opening_problem
 from pour_gym.objects import OBJECT_NAMES, ContainerModel, build_object
 from pour_gym.parts import PART_NAMES, Part
+from pour_gym.report.tables import markdown_table
 from pour_gym.warp.frame import canonical_frame
 from pour_gym.warp.transfer import transfer_best, transfer_thesis
 
@@ -292,7 +293,7 @@ def write_asset(asset: LabelledAsset, out: str | Path, picture: bool = True) -> 
     meta = {k: v for k, v in asset.meta.items() if k != "seconds"}
     (out / "meta.json").write_text(json.dumps(meta, indent=2, sort_keys=True) + "\n")
     if picture:
-        from pour_gym.render import render_mesh
+        from pour_gym.report.pictures import render_mesh
 
         render_mesh(asset.mesh, out / "labels.png", labels=asset.labels, title=asset.name)
     return out
@@ -417,7 +418,7 @@ def resolve_asset(spec: str | Path, cache_dir: str | Path | None = None) -> Labe
         raise InputError(f"no container {s!r}: not a catalogue name, asset directory or file")
     import hashlib
 
-    from pour_gym.cache import cache_dir as user_cache
+    from pour_gym.io.cache import cache_dir as user_cache
 
     digest = hashlib.sha256(p.read_bytes() + f"v{LABELLING_VERSION}".encode()).hexdigest()[:16]
     root = Path(cache_dir) if cache_dir is not None else user_cache("assets")
@@ -447,30 +448,30 @@ def warping_tables(reports: dict[str, dict]) -> str:
         ("volume_convex_hull", "Table 4.3: volume (convex hull, thesis 5.1)", "ml", 1e6),
     ):
         out.append(f"### {title}\n")
-        out.append(
-            f"| object | real {unit} | thesis {unit} | thesis error | thesis method {unit} "
-            f"| error | best {unit} | error |"
-        )
-        out.append("|---|---:|---:|---:|---:|---:|---:|---:|")
+        header = ["object", f"real {unit}", f"thesis {unit}", "thesis error",
+                  f"thesis method {unit}", "error", f"best {unit}", "error"]  # fmt: skip
+        rows = []
         errs = np.zeros(3)
         for name, by_method in reports.items():
             t = by_method["thesis"]["tables"][key]
             b = by_method["best"]["tables"][key]
             errs += [t["thesis_rel_error"], t["rel_error"], b["rel_error"]]
-            out.append(
-                f"| {name} | {t['real'] * factor:.2f} | {t['thesis_computed'] * factor:.2f} | "
-                f"{t['thesis_rel_error']:.1%} | {t['computed'] * factor:.2f} | "
-                f"{t['rel_error']:.1%} | {b['computed'] * factor:.2f} | {b['rel_error']:.1%} |"
-            )
+            rows.append([
+                name, f"{t['real'] * factor:.2f}", f"{t['thesis_computed'] * factor:.2f}",
+                f"{t['thesis_rel_error']:.1%}", f"{t['computed'] * factor:.2f}",
+                f"{t['rel_error']:.1%}", f"{b['computed'] * factor:.2f}", f"{b['rel_error']:.1%}",
+            ])  # fmt: skip
         m = errs / len(reports)
-        out.append(f"| **mean** | | | **{m[0]:.1%}** | | **{m[1]:.1%}** | | **{m[2]:.1%}** |\n")
+        rows.append(["**mean**", "", "", f"**{m[0]:.1%}**", "", f"**{m[1]:.1%}**", "",
+                     f"**{m[2]:.1%}**"])  # fmt: skip
+        out.append(markdown_table(header, rows) + "\n")
     out.append("### Per-part IoU against ground truth (thesis method / best)\n")
-    out.append("| object | rim | handle | container | outside |")
-    out.append("|---|---:|---:|---:|---:|")
+    rows = []
     for name, by_method in reports.items():
         cells = []
         for part in ("rim", "handle", "container", "outside"):
             pair = (by_method["thesis"]["iou"][part], by_method["best"]["iou"][part])
             cells.append(" / ".join("-" if v is None else f"{v:.2f}" for v in pair))
-        out.append(f"| {name} | " + " | ".join(cells) + " |")
+        rows.append([name, *cells])
+    out.append(markdown_table(["object", "rim", "handle", "container", "outside"], rows))
     return "\n".join(out)

@@ -22,7 +22,7 @@ class ClosedContainerError(InputError):
 
     Args:
         name: the container's name or file.
-        problem: what shows it is closed (:func:`pour_gym.measure.opening_problem`).
+        problem: what shows it is closed (:func:`pour_gym.mesh.measure.opening_problem`).
         flag: name ``--allow-closed`` in the fix (where a caller may label it anyway).
     """
 

@@ -36,7 +36,7 @@ import trimesh
 from scipy.spatial import ConvexHull, QhullError, cKDTree
 
 from pour_gym.errors import InputError
-from pour_gym.measure import Cavity, cavity
+from pour_gym.mesh.measure import Cavity, cavity
 from pour_gym.parts import Part
 
 

@@ -10,7 +10,7 @@ import pytest
 
 from pour_gym.agents.evaluate import evaluate_policy
 from pour_gym.agents.search import PARAMETERS, search
-from pour_gym.agents.training import hyperparameters
+from pour_gym.agents.training import load_hyperparameters
 from pour_gym.errors import InputError
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -26,9 +26,9 @@ def test_hyperparameters_cover_every_env_and_algo():
 
     for env_id in ENV_IDS:
         for algo in ("sac", "ppo", "td3"):
-            assert "policy" in hyperparameters(env_id, algo)
+            assert "policy" in load_hyperparameters(env_id, algo)
     with pytest.raises(InputError, match="no hyperparameters"):
-        hyperparameters("PourGym/Juggle-v0", "sac")
+        load_hyperparameters("PourGym/Juggle-v0", "sac")
 
 
 def test_training_starts_draw_where_an_episode_starts_and_how_full():
@@ -78,7 +78,16 @@ def test_train_py_trains_checkpoints_resumes_and_evaluates(tmp_path):
     doc = json.loads(first.stdout)
     assert [r["object"] for r in doc["rows"]] == ["red_cup", "standard_cup"]
     assert doc["rows"][0]["trained_on"] and not doc["rows"][1]["trained_on"]
-    assert all(0.0 <= r["success"] <= 1.0 for r in doc["rows"])
+    # The rows are the saved model's: evaluated again here, at the run's seeds.
+    from pour_gym.agents.evaluate import evaluate_policy
+    from pour_gym.agents.rollout import sb3_policy
+    from pour_gym.agents.training import load_run
+
+    run = load_run(out / "model.zip")
+    objects = ["red_cup", "standard_cup"]
+    here = evaluate_policy(sb3_policy(run), "PourGym/TiltPour-v0", objects, episodes=3,
+                           env_kwargs=run.env_kwargs(), trained_on=["red_cup"])  # fmt: skip
+    assert here["rows"] == doc["rows"]
     for name in ("model.zip", "config.json", "progress.csv", "eval.json", "eval.md"):
         assert (out / name).is_file(), name
     assert list((out / "checkpoints").glob("model_*_steps.zip"))
@@ -143,7 +152,7 @@ def test_pour_recipe_trains_and_its_model_evaluates_on_a_user_mesh(tmp_path):
         assert np.array_equal(tensor.numpy(), weights[1][name].numpy()), name
     mesh = tmp_path / "thin.obj"
     thin_walled_cup().export(mesh)
-    cli = [sys.executable, "-m", "pour_gym.cli"]
+    cli = [sys.executable, "-m", "pour_gym.apps.cli"]
     evaluated = subprocess.run(
         [*cli, "evaluate", str(out / "model.zip"), "--objects", str(mesh), "--episodes", "1",
          "--json"],
@@ -224,6 +233,7 @@ def test_closed_loop_poc_pours_twenty_particles():
 
 def test_keep_best_keeps_the_most_successful_then_the_closest_point(tmp_path):
     from pour_gym.agents.training import keep_if_best
+    from pour_gym.envs import POUR, task_of
 
     class Model:
         def __init__(self, tag: str):
@@ -241,10 +251,11 @@ def test_keep_best_keeps_the_most_successful_then_the_closest_point(tmp_path):
         ("e", {"success": 1.0, "return": 0.0, "amount_error": 50.0}, True),
     ]
     for tag, point, kept in points:
-        assert keep_if_best(best, point, Model(tag), venv=None) is kept, tag
+        assert keep_if_best(best, point, Model(tag), venv=None, task=POUR) is kept, tag
     assert (best / "model.zip").read_text() == "e"
     assert json.loads((best / "point.json").read_text())["success"] == 1.0
     # Without an amount error (the one-step envs) the return breaks ties.
     other = tmp_path / "other"
-    assert keep_if_best(other, {"success": 0.5, "return": 1.0}, Model("x"), None)
-    assert keep_if_best(other, {"success": 0.5, "return": 2.0}, Model("y"), None)
+    tilt = task_of("PourGym/TiltPour-v0")
+    assert keep_if_best(other, {"success": 0.5, "return": 1.0}, Model("x"), None, tilt)
+    assert keep_if_best(other, {"success": 0.5, "return": 2.0}, Model("y"), None, tilt)

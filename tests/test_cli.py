@@ -1,28 +1,17 @@
 """The command line: JSON on stdout and nothing else, clear errors, working outputs."""
 
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from pour_gym.fileio import save_point_cloud
-from pour_gym.scan import ScanConfig, turntable_scan
+from pour_gym.mesh.fileio import save_point_cloud
+from pour_gym.mesh.scan import ScanConfig, turntable_scan
 
 
-def run(*args, check=True):
-    proc = subprocess.run(
-        [sys.executable, "-m", "pour_gym.cli", *args], capture_output=True, text=True
-    )
-    if check:
-        assert proc.returncode == 0, proc.stderr
-    return proc
-
-
-def test_objects_json_lists_nine_in_si_units():
-    doc = json.loads(run("objects", "--json").stdout)
+def test_objects_json_lists_nine_in_si_units(cli):
+    doc = json.loads(cli("objects", "--json").stdout)
     assert len(doc) == 9
     red = next(d for d in doc if d["name"] == "red_cup")
     assert red["height"] == pytest.approx(0.087)
@@ -30,21 +19,21 @@ def test_objects_json_lists_nine_in_si_units():
     assert red["volume"] == pytest.approx(265e-6)
 
 
-def test_unknown_object_is_a_one_line_error():
-    proc = run("reconstruct", "teacup", "--out", "x.obj", check=False)
+def test_unknown_object_is_a_one_line_error(cli):
+    proc = cli("reconstruct", "teacup", "--out", "x.obj", check=False)
     assert proc.returncode == 2
     assert "unknown object 'teacup'" in proc.stderr and "red_cup" in proc.stderr
     assert "Traceback" not in proc.stderr
 
 
-def test_scan_then_reconstruct_a_user_cloud(tmp_path, models):
+def test_scan_then_reconstruct_a_user_cloud(tmp_path, models, cli):
     cup = models["very_small_cup"]
     cloud = turntable_scan(cup.mesh, cup.labels, ScanConfig(views=12, width=120, height=90))
     # The user's file has no normals and is in millimetres.
     cloud.points *= 1000.0
     cloud.normals = None
     src = save_point_cloud(cloud, tmp_path / "cup_mm.xyz")
-    proc = run(
+    proc = cli(
         "reconstruct",
         "--points",
         str(src),
@@ -54,7 +43,7 @@ def test_scan_then_reconstruct_a_user_cloud(tmp_path, models):
         check=False,
     )
     assert proc.returncode == 2 and "millimetres" in proc.stderr and proc.stdout == ""
-    proc = run(
+    proc = cli(
         "reconstruct",
         "--points",
         str(src),
@@ -73,34 +62,43 @@ def test_scan_then_reconstruct_a_user_cloud(tmp_path, models):
     assert offset["volume"] == pytest.approx(170e-6, rel=0.2)
 
 
-def test_scan_command_writes_a_cloud(tmp_path):
+def test_scan_command_writes_a_cloud(tmp_path, cli):
     out = tmp_path / "red.ply"
-    doc = json.loads(run("scan", "red_cup", "--out", str(out), "--views", "6", "--json").stdout)
+    doc = json.loads(cli("scan", "red_cup", "--out", str(out), "--views", "6", "--json").stdout)
     assert out.exists() and doc["n_points"] > 1000
 
 
-def test_measure_needs_a_watertight_mesh(tmp_path):
+def test_measure_needs_a_watertight_mesh(tmp_path, cli):
     import trimesh
 
     box = trimesh.creation.box([0.05, 0.05, 0.05])
     box.update_faces(np.arange(12) > 0)
     path = tmp_path / "open.stl"
     box.export(path)
-    proc = run("measure", str(path), check=False)
+    proc = cli("measure", str(path), check=False)
     assert proc.returncode == 2 and "not watertight" in proc.stderr
-    doc = json.loads(run("measure", "standard_bowl", "--json").stdout)
+    doc = json.loads(cli("measure", "standard_bowl", "--json").stdout)
     assert doc["volume"] == pytest.approx(1038e-6, rel=0.01)
 
 
-def test_evaluate_runs_a_searched_policy_and_rejects_other_json(tmp_path):
+def test_evaluate_runs_a_searched_policy_and_rejects_other_json(tmp_path, cli):
     # The packaged red-cup search.
     searched = str(Path(__file__).resolve().parents[1] / "agents/poc_search_red_cup_20.json")
-    doc = json.loads(run("evaluate", searched, "--objects", "red_cup", "--episodes", "1",
+    doc = json.loads(cli("evaluate", searched, "--objects", "red_cup", "--episodes", "1",
                          "--json").stdout)  # fmt: skip
     row = doc["rows"][0]
     assert row["object"] == "red_cup" and row["trained_on"] is True
-    assert 0.0 <= row["success"] <= 1.0 and row["amount_error"] >= 0.0
+    # The command evaluates the searched parameters, at the documented first seed.
+    from pour_gym.agents.evaluate import evaluate_policy
+    from pour_gym.agents.scripted import ScriptedPourPolicy
+    from pour_gym.agents.search import load_search
+
+    found = load_search(searched)
+    policy = ScriptedPourPolicy(**found["best"])
+    here = evaluate_policy(policy, "PourGym/Pour-v0", ["red_cup"], episodes=1, seed=10_000,
+                           trained_on=found["sources"])  # fmt: skip
+    assert here["rows"] == doc["rows"]
     bad = tmp_path / "not_a_search.json"
     bad.write_text("{}")
-    proc = run("evaluate", str(bad), "--objects", "red_cup", check=False)
+    proc = cli("evaluate", str(bad), "--objects", "red_cup", check=False)
     assert proc.returncode == 2 and "search.json" in proc.stderr

@@ -10,7 +10,6 @@ from pour_gym.assets import LabelledAsset, label_container, write_asset
 from pour_gym.errors import ClosedContainerError
 from pour_gym.objects import cylinder_cup
 from pour_gym.objects.user_meshes import capped_cup
-from tests.test_cli import run
 
 
 @pytest.mark.parametrize("dented_base", [False, True])
@@ -20,11 +19,11 @@ def test_a_capped_cup_is_refused_with_the_fix(dented_base):
     assert "--allow-closed" in str(err.value)
 
 
-def test_the_command_line_refuses_it_in_one_line(tmp_path):
+def test_the_command_line_refuses_it_in_one_line(tmp_path, cli):
     path = tmp_path / "pitcher.stl"
     capped_cup(dented_base=True).export(path)
     for args in (("label", str(path), "--out", str(tmp_path / "a")), ("measure", str(path))):
-        proc = run(*args, check=False)
+        proc = cli(*args, check=False)
         assert proc.returncode == 2, proc.stderr
         lines = proc.stderr.strip().splitlines()
         assert len(lines) == 1 and "looks closed at the top" in lines[0], proc.stderr

@@ -14,11 +14,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pour_gym.cli import main
-from pour_gym.cluster import check_address
+from pour_gym.agents.cluster import check_address
+from pour_gym.apps.cli import main
 from pour_gym.errors import InputError
 
-CLI = [sys.executable, "-m", "pour_gym.cli"]
+CLI = [sys.executable, "-m", "pour_gym.apps.cli"]
 
 
 def test_address_without_ray_names_the_extra(monkeypatch, capsys):
@@ -130,7 +130,8 @@ def test_sweep_runs_four_trials_on_ray_and_resumes(tmp_path, ray_local):
     for trial in doc["trials"]:
         run = Path(trial["run_dir"])
         assert (run / "model.zip").is_file() and trial["node_id"]
-        assert 0.0 <= trial["eval"]["mean"]["success"] <= 1.0
+        assert trial["eval"] == json.loads((run / "eval.json").read_text())
+        assert trial["eval"]["mean"]["success"] in (0.0, 0.5, 1.0)  # 2 one-step episodes
 
     def stamps(d: dict) -> list[int]:
         return [(Path(t["run_dir"]) / "eval.json").stat().st_mtime_ns for t in d["trials"]]
@@ -155,6 +156,38 @@ def _ray_processes(temp: Path, port: int) -> list[str]:
 
 
 @pytest.mark.slow
+def test_a_sweep_trial_with_worker_processes_runs_on_ray(tmp_path):
+    """The shipped PPO recipe of TiltPour-v0 steps two envs in SubprocVecEnv workers; inside
+    a Ray trial those workers never imported pour-gym, and every trial failed with
+    NamespaceNotFound until the envs were made through pour_gym.envs.make."""
+    spec = tmp_path / "sweep.yaml"
+    spec.write_text(
+        "env: PourGym/TiltPour-v0\nalgo: ppo\ntimesteps: 256\nobjects: red_cup\n"
+        "eval_objects: red_cup\neval_episodes: 2\ncheckpoint_every: 256\n"
+        "overrides: {n_steps: 128, batch_size: 64}\ngrid:\n  seed: [0]\n"
+    )
+    done = subprocess.run(
+        [*CLI, "sweep", str(spec), "--out", str(tmp_path / "out"), "--address", "local",
+         "--json"],
+        capture_output=True, text=True, env={**os.environ, "RAY_USAGE_STATS_ENABLED": "0"},
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr[-3000:]
+    (trial,) = json.loads(done.stdout)["trials"]
+    assert trial["config"]["seed"] == 0 and trial["eval"]["episodes"] == 2
+    config = json.loads((Path(trial["run_dir"]) / "config.json").read_text())
+    assert config["n_envs"] == 2  # the recipe's two workers
+
+
+def _accepts(port: int) -> bool:
+    """Whether something listens on this loopback port."""
+    try:
+        with socket.create_connection(("127.0.0.1", port), timeout=0.5):
+            return True
+    except OSError:
+        return False
+
+
+@pytest.mark.slow
 def test_sweep_on_a_two_node_cluster_uses_both_nodes(tmp_path):
     pytest.importorskip("ray")
     ray_bin = shutil.which("ray", path=str(Path(sys.executable).parent))
@@ -172,7 +205,10 @@ def test_sweep_on_a_two_node_cluster_uses_both_nodes(tmp_path):
     nodes = [head]
     try:
         address = f"127.0.0.1:{port}"
-        time.sleep(8)
+        deadline = time.time() + 60
+        while not _accepts(port) and time.time() < deadline:  # the head's GCS is up
+            time.sleep(0.2)
+        assert _accepts(port), "the Ray head did not start within 60 s"
         worker = subprocess.Popen(
             [ray_bin, "start", "--address", address, *common],
             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env, start_new_session=True,

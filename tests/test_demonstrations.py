@@ -1,5 +1,7 @@
 """Demonstrations for off-policy learners: recorded as the env moves, sampled as asked."""
 
+import functools
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -7,6 +9,7 @@ import torch
 from gymnasium import spaces
 
 import pour_gym  # noqa: F401 - registers the environments
+from pour_gym.agents.curriculum import TrainingStarts
 from pour_gym.agents.demonstrations import (
     Demonstrations,
     DemoReplayBuffer,
@@ -59,7 +62,17 @@ def test_collected_demonstrations_succeed_and_hold_the_env_observations():
     # Each next observation is the following step's observation within an episode.
     ends = np.flatnonzero(demos.terminated)
     assert np.array_equal(demos.next_observations[: ends[0]], demos.observations[1 : ends[0] + 1])
-    assert np.all(np.abs(demos.actions) <= 1.0)
+    # Replayed in a fresh env from the same seeds, the recorded actions give the recorded
+    # observations, step by step.
+    env = gym.make("PourGym/Pour-v0", **kwargs)
+    starts = np.concatenate([[0], ends[:-1] + 1])
+    for k, (first, last) in enumerate(zip(starts, ends, strict=True)):
+        obs, _ = env.reset(seed=7 + k)
+        assert np.array_equal(obs, demos.observations[first])
+        for i in range(first, last + 1):
+            obs, *_ = env.step(demos.actions[i])
+            assert np.array_equal(obs, demos.next_observations[i])
+    env.close()
 
 
 def test_replay_batches_take_the_demonstration_share():
@@ -131,8 +144,9 @@ def test_noisy_demonstrations_execute_noise_and_keep_the_expert_labels():
 
     kwargs = {"objects": ["red_cup"]}
     sigma = (0.0, 0.0, 0.0, 0.1)
+    starts = functools.partial(TrainingStarts, fill_margin=(40, 40))
     demos = collect_demonstrations("PourGym/Pour-v0", kwargs, 1, seed=5, noise=sigma,
-                                   fill_margin=(40, 40), progress=False)  # fmt: skip
+                                   wrapper=starts, progress=False)  # fmt: skip
     assert demos.expert_actions is not None and demos.labels is demos.expert_actions
     diff = demos.actions - demos.expert_actions
     assert np.all(diff[:, :3] == 0.0)  # no noise asked on the lip
@@ -156,7 +170,7 @@ def test_noisy_demonstrations_execute_noise_and_keep_the_expert_labels():
 def test_inputs_the_demonstrations_never_vary_are_hidden_from_the_network():
     from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
-    from pour_gym.agents.training import ignore_constant_inputs
+    from pour_gym.agents.training.bootstrap import ignore_constant_inputs
 
     venv = VecNormalize(DummyVecEnv([lambda: gym.make("Pendulum-v1")]), epsilon=0.1)
     rng = np.random.default_rng(0)

@@ -15,40 +15,47 @@ import pytest
 from gymnasium.utils.env_checker import check_env as gym_check_env
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
-import pour_gym  # noqa: F401 - registers the environments
 from pour_gym.agents.rollout import rollout
 from pour_gym.agents.scripted import ScriptedPourPolicy
-from pour_gym.envs import ENV_IDS
+from pour_gym.envs import ENV_IDS, ENVS, POUR, POUR_V0, entry, task_of
 from pour_gym.features import fluid_features, relative_distance_height
 from pour_gym.objects import cylinder_cup
 
-# Small fluids keep the checks quick; the defaults are exercised by the policy test.
-FAST = {
-    "PourGym/Pour-v0": {"source_particles": 300, "amount_range": (40, 80)},
-    "PourGym/ParticleDrop-v0": {},
-    "PourGym/TiltPour-v0": {},
-    "PourGym/PandaPour-v0": {"source_particles": 300, "amount_range": (40, 80)},
-}
+
+def test_every_registered_id_is_in_the_registry_list_the_generic_tests_use():
+    """The generic tests are parametrised by ENV_IDS, which the registry list makes: an id
+    registered under PourGym/ anywhere else would escape them, so none may be."""
+    registered = {env_id for env_id in gym.registry if env_id.startswith("PourGym/")}
+    assert registered == set(ENV_IDS) == {e.id for e in ENVS}
+    assert len(ENV_IDS) == len(set(ENV_IDS)) == 4
+    for e in ENVS:
+        spec = gym.spec(e.id)
+        assert spec.entry_point == e.entry_point
+        assert spec.max_episode_steps == e.max_episode_steps
+        assert spec.kwargs == e.kwargs
+    with pytest.raises(ValueError, match="PourGym/Pour-v0"):
+        entry("PourGym/Juggle-v0")
+    assert entry("pour_gym:PourGym/TiltPour-v0").id == "PourGym/TiltPour-v0"
 
 
-def make(env_id, **kwargs):
-    return gym.make(env_id, **{**FAST[env_id], **kwargs})
-
-
-def test_ids_are_registered():
-    assert set(ENV_IDS) == {
-        "PourGym/Pour-v0",
-        "PourGym/ParticleDrop-v0",
-        "PourGym/TiltPour-v0",
-        "PourGym/PandaPour-v0",
-    }
-    for env_id in ENV_IDS:
-        assert env_id in gym.registry
+def test_each_env_names_its_task_and_the_task_scores_an_episode():
+    assert [task_of(e) for e in ENV_IDS] == [POUR, task_of("PourGym/ParticleDrop-v0"),
+                                            task_of("PourGym/TiltPour-v0"), POUR]  # fmt: skip
+    assert [task_of(e).pours for e in ENV_IDS] == [True, False, False, True]
+    info = {"is_success": True, "poured": 95, "target_amount": 100, "spilled": 2,
+            "fluid_corrections": 7}  # fmt: skip
+    assert POUR.metrics(info, 1.5) == {
+        "success": 1.0, "return": 1.5, "amount_error": 5.0, "spilled": 2.0,
+    }  # fmt: skip
+    assert POUR.diagnostics(info) == {"corrections": 7.0}
+    drop = task_of("PourGym/ParticleDrop-v0")
+    assert drop.metrics({"is_success": False}, -1.0) == {"success": 0.0, "return": -1.0}
+    assert drop.diagnostics({}) == {}
 
 
 @pytest.mark.parametrize("env_id", ENV_IDS)
-def test_gymnasium_and_sb3_checks_pass_without_a_warning(env_id):
-    env = make(env_id)
+def test_gymnasium_and_sb3_checks_pass_without_a_warning(env_id, make_env):
+    env = make_env(env_id)
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # as Gymnasium's own env tests: a warning fails
         gym_check_env(env.unwrapped, skip_render_check=True)
@@ -67,9 +74,9 @@ def _plain(value):
 
 @pytest.mark.parametrize("env_id", ENV_IDS)
 @pytest.mark.parametrize("obs_mode", ["features", "state"])
-def test_same_seed_same_rollout_and_info(env_id, obs_mode):
+def test_same_seed_same_rollout_and_info(env_id, obs_mode, make_env):
     def run():
-        env = make(env_id, obs_mode=obs_mode)
+        env = make_env(env_id, obs_mode=obs_mode)
         obs, info = env.reset(seed=7)
         env.action_space.seed(3)
         out, infos = [obs], [_plain(info)]
@@ -93,8 +100,8 @@ def test_same_seed_same_rollout_and_info(env_id, obs_mode):
 
 
 @pytest.mark.parametrize("env_id", ENV_IDS)
-def test_pickles_as_its_arguments_and_refuses_bad_actions(env_id):
-    env = make(env_id)
+def test_pickles_as_its_arguments_and_refuses_bad_actions(env_id, make_env):
+    env = make_env(env_id)
     copy = pickle.loads(pickle.dumps(env))  # before a reset: no world yet
     env.reset(seed=0)
     later = pickle.loads(pickle.dumps(env))  # after: the world is not pickled, rebuilt
@@ -111,7 +118,7 @@ def test_pickles_as_its_arguments_and_refuses_bad_actions(env_id):
         env.step(np.zeros(shape[0] + 2))
     with pytest.raises(ValueError, match="unknown reset options"):
         env.reset(options={"colour": "red"})
-    frame = make(env_id, render_mode="rgb_array")
+    frame = make_env(env_id, render_mode="rgb_array")
     frame.reset(seed=0)
     image = frame.render()
     assert image.ndim == 3 and image.shape[2] == 3 and image.dtype == np.uint8
@@ -120,7 +127,7 @@ def test_pickles_as_its_arguments_and_refuses_bad_actions(env_id):
     env.close()  # twice is fine
     with pytest.raises(RuntimeError, match="closed"):
         env.step(np.zeros(shape))
-    fresh = make(env_id).unwrapped  # Gymnasium's OrderEnforcing wrapper says it first
+    fresh = make_env(env_id).unwrapped  # Gymnasium's OrderEnforcing wrapper says it first
     with pytest.raises(RuntimeError, match="reset"):
         fresh.step(np.zeros(shape))
     fresh.close()
@@ -128,9 +135,9 @@ def test_pickles_as_its_arguments_and_refuses_bad_actions(env_id):
     later.close()
 
 
-def test_angle_tilt_control_goes_to_the_commanded_tilt_at_the_rate_limit():
+def test_angle_tilt_control_goes_to_the_commanded_tilt_at_the_rate_limit(make_env):
     """tilt_control="angle": action 1 tilts to max_tilt, no faster than max_tilt_rate."""
-    env = make("PourGym/Pour-v0", objects="red_cup", tilt_control="angle", max_tilt_rate=60.0)
+    env = make_env(POUR_V0, objects="red_cup", tilt_control="angle", max_tilt_rate=60.0)
     env.reset(seed=0)
     tilts = []
     for _ in range(4):
@@ -146,12 +153,12 @@ def test_angle_tilt_control_goes_to_the_commanded_tilt_at_the_rate_limit():
     assert info["tilt_deg"] == 0.0
     env.close()
     with pytest.raises(ValueError, match="tilt_control"):
-        make("PourGym/Pour-v0", objects="red_cup", tilt_control="torque")
+        make_env(POUR_V0, objects="red_cup", tilt_control="torque")
 
 
-def test_observations_hold_the_library_features():
+def test_observations_hold_the_library_features(make_env):
     """The features in each observation are the numbers pour_gym.features computes."""
-    pour = make("PourGym/Pour-v0")
+    pour = make_env(POUR_V0)
     obs, _ = pour.reset(seed=3)
     for _ in range(12):  # tilt until some fluid stands above the lip
         obs, *_ = pour.step(np.array([0.0, 0.0, 0.0, 1.0]))
@@ -173,7 +180,7 @@ def test_observations_hold_the_library_features():
         assert obs[names.index("stream_f1")] == pytest.approx(f1.mean(), rel=1e-5)
     pour.close()
 
-    drop = make("PourGym/ParticleDrop-v0")
+    drop = make_env("PourGym/ParticleDrop-v0")
     obs, _ = drop.reset(seed=0, options={"fill": 0.3})
     d = drop.unwrapped
     c = d.container
@@ -182,7 +189,7 @@ def test_observations_hold_the_library_features():
     assert obs == pytest.approx([f1[0], f2[0], 0.3], rel=1e-5)
     drop.close()
 
-    tilt = make("PourGym/TiltPour-v0")
+    tilt = make_env("PourGym/TiltPour-v0")
     obs, _ = tilt.reset(seed=0, options={"fill": 0.7, "tilt_deg": 50.0})
     u = tilt.unwrapped
     rest = u.rest @ u.rotation.T
@@ -205,6 +212,10 @@ def test_unknown_containers_and_arguments_are_refused():
         gym.make("PourGym/Pour-v0", num_threads=0)
     with pytest.raises(ValueError, match="weights"):
         gym.make("PourGym/Pour-v0", spill_weight=float("nan"))
+    with pytest.raises(ValueError, match="holder must be one of free, panda"):
+        gym.make("PourGym/Pour-v0", holder="ur5")
+    with pytest.raises(ValueError, match=r"unknown argument\(s\) contrl"):
+        gym.make("PourGym/PandaPour-v0", contrl="joints")
 
 
 def test_a_user_mesh_works_as_a_container(tmp_path):

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from pour_gym.gaussian_field import fit_gaussian_field, kernel_matrix, voxel_means
+from pour_gym.mesh.gaussian_field import fit_gaussian_field, kernel_matrix, voxel_means
 
 
 def dense_kernel(x, y, sigma, cutoff):

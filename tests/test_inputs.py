@@ -5,9 +5,9 @@ import pytest
 import trimesh
 
 from pour_gym.errors import InputError
-from pour_gym.fileio import load_mesh, load_point_cloud, save_point_cloud, validate_mesh
-from pour_gym.reconstruct import reconstruct, validate_cloud
-from pour_gym.scan import PointCloud
+from pour_gym.mesh.fileio import load_mesh, load_point_cloud, save_point_cloud, validate_mesh
+from pour_gym.mesh.reconstruct import reconstruct, validate_cloud
+from pour_gym.mesh.scan import PointCloud
 
 
 def sphere_cloud(n=2000, radius=0.04):

@@ -5,7 +5,7 @@ import pytest
 import trimesh
 
 from pour_gym.errors import InputError
-from pour_gym.measure import chamfer_distance, container_dimensions, holding_volume
+from pour_gym.mesh.measure import chamfer_distance, container_dimensions, holding_volume
 from pour_gym.objects import cylinder_cup
 
 

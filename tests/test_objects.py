@@ -5,7 +5,7 @@ import pytest
 import trimesh
 
 from pour_gym.errors import InputError
-from pour_gym.measure import container_dimensions
+from pour_gym.mesh.measure import container_dimensions
 from pour_gym.objects import CUP_NAMES, OBJECT_NAMES, SPECS, build_object, get_spec
 from pour_gym.parts import Part
 

@@ -11,17 +11,31 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-import pour_gym  # noqa: F401 - registers the environments
 from pour_gym.agents.rollout import rollout
 from pour_gym.agents.scripted import ScriptedPourPolicy
-from pour_gym.envs.panda_pour import JOINT_NAMES
-from pour_gym.soak import soak
+from pour_gym.apps.soak import soak
+from pour_gym.envs import PANDA_POUR_V0, entry
+from pour_gym.envs.holders import JOINT_NAMES, PandaHolder
+from pour_gym.envs.pour import PourEnv
 
-SMALL = {"source_particles": 300, "amount_range": (40, 80), "num_threads": 1}
+SMALL = {**entry(PANDA_POUR_V0).quick, "num_threads": 1}
 
 
 def make(**kwargs):
-    return gym.make("PourGym/PandaPour-v0", **{**SMALL, **kwargs})
+    return gym.make(PANDA_POUR_V0, **{**SMALL, **kwargs})
+
+
+def test_panda_pour_is_the_pouring_task_with_the_arm_as_its_holder():
+    env = make(objects=["red_cup"], control="joints")
+    u = env.unwrapped
+    assert type(u) is PourEnv and isinstance(u.holder, PandaHolder)
+    assert u.holder.control == "joints" and u.action_space.shape == (7,)
+    assert u.solid and gym.spec(PANDA_POUR_V0).kwargs == {"holder": "panda"}
+    direct = PourEnv(holder="panda", objects=["red_cup"], **SMALL)
+    assert direct.observation_space == u.observation_space
+    assert set(direct.reward_weights) == set(u.reward_weights) >= {"joint_limit", "collision"}
+    env.close()
+    direct.close()
 
 
 def _angle(a: np.ndarray, b: np.ndarray) -> float:
@@ -35,11 +49,11 @@ def test_the_cup_stays_in_the_hand_at_full_speed_and_tilt_rate(source):
     env = make(source_objects=[source], target_objects=["broad_cup"])
     u = env.unwrapped
     env.reset(seed=3)
-    g = u._grasp()
+    g = u.holder._grasp(u)
     for k in range(50):
         sign = 1.0 if (k // 10) % 2 == 0 else -1.0
         _, _, terminated, _, _ = env.step(np.array([sign, -sign, sign, sign], np.float32))
-        hand_position, hand_rotation = u.panda.hand_pose()
+        hand_position, hand_rotation = u.holder.panda(u).hand_pose()
         held_rotation = u.source.rotation @ g.rotation
         held_position = u.source.to_world(g.position)
         assert np.linalg.norm(held_position - hand_position) < 0.002
@@ -101,8 +115,9 @@ def test_the_observation_ends_with_the_joints_normalised():
     u = env.unwrapped
     obs, _ = env.reset(seed=0)
     assert len(u.obs_names) == len(obs) == 16 + 14 and u.obs_names[16:] == JOINT_NAMES
-    q = u.panda.joints
-    mid, half = 0.5 * (u.panda.upper + u.panda.lower), 0.5 * (u.panda.upper - u.panda.lower)
+    arm = u.holder.panda(u)
+    q = arm.joints
+    mid, half = 0.5 * (arm.upper + arm.lower), 0.5 * (arm.upper - arm.lower)
     assert np.allclose(obs[16:23], (q - mid) / half, atol=1e-6)
     assert np.all(obs[23:] == 0.0)  # at rest after the reset
     obs, *_ = env.step(np.array([0.0, 0.0, 0.0, 1.0], np.float32))
@@ -160,7 +175,14 @@ def test_the_episode_command_writes_the_arm_pouring_as_a_gif(tmp_path):
 
     from PIL import Image
 
-    command = [sys.executable, "-m", "pour_gym.cli", "episode", "--env", "PourGym/PandaPour-v0"]
+    command = [
+        sys.executable,
+        "-m",
+        "pour_gym.apps.cli",
+        "episode",
+        "--env",
+        "PourGym/PandaPour-v0",
+    ]
     proc = subprocess.run(
         [*command, "--target-amount", "60", "--out", str(tmp_path), "--json"],
         capture_output=True,
@@ -172,4 +194,4 @@ def test_the_episode_command_writes_the_arm_pouring_as_a_gif(tmp_path):
     with Image.open(doc["video"]) as gif:
         assert gif.n_frames > 20 and gif.size == (480, 360)
     bad = subprocess.run([*command[:-1], "PourGym/Juggle-v0"], capture_output=True, text=True)
-    assert bad.returncode == 2 and "invalid choice" in bad.stderr
+    assert bad.returncode == 2 and "unknown environment 'PourGym/Juggle-v0'" in bad.stderr

@@ -7,7 +7,7 @@ inner model, where the thesis reports mean errors of 11.2 %, 7.0 % and 39.7 %.
 import numpy as np
 import pytest
 
-from pour_gym.modelgen import generate_model
+from pour_gym.mesh.modelgen import generate_model
 from pour_gym.objects import OBJECT_NAMES
 
 THESIS_MEAN_ERROR = {"height": 0.1122, "rim_radius": 0.0702, "volume": 0.3966}

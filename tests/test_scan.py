@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from pour_gym.errors import InputError
+from pour_gym.mesh.scan import ScanConfig, turntable_scan
 from pour_gym.parts import Part
-from pour_gym.scan import ScanConfig, turntable_scan
 
 
 def test_scan_sees_only_the_outside(models):

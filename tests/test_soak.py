@@ -5,8 +5,7 @@ import json
 
 import pytest
 
-from pour_gym.soak import soak, user_meshes
-from tests.test_cli import run
+from pour_gym.apps.soak import soak, user_meshes
 
 
 @pytest.mark.slow
@@ -21,8 +20,8 @@ def test_random_actions_break_nothing(env_id, tmp_path):
 
 
 @pytest.mark.slow
-def test_soak_command_prints_the_counts(tmp_path):
-    proc = run("soak", "--env", "PourGym/TiltPour-v0", "--objects", "red_cup",
+def test_soak_command_prints_the_counts(tmp_path, cli):
+    proc = cli("soak", "--env", "PourGym/TiltPour-v0", "--objects", "red_cup",
                "--episodes", "3", "--json")  # fmt: skip
     doc = json.loads(proc.stdout)
     assert {"episodes", "exceptions", "false_endings", "particles_lost", "wall_violations",

@@ -11,4 +11,4 @@ for ENV in ParticleDrop TiltPour; do
       --out runs/study/${ENV}_${MODE}
   done
 done
-$PY -m pour_gym.cli report generalisation --runs runs/study --out docs/generalisation
+$PY -m pour_gym.apps.cli report generalisation --runs runs/study --out docs/generalisation

@@ -9,8 +9,8 @@ has no pressure: it behaves like marbles, which is what the cross-check is for.
 
 The containers collide as compounds of convex pieces (pybullet's V-HACD decomposition,
 cached on disk): spheres pressed against a bare triangle mesh sink through its one-sided
-surfaces (measured: 3.9 mm deep into a 3.5 mm wall, most of 300 spheres lost on a pour),
-while a convex piece pushes them back out of its volume.
+surfaces (deeper than a wall is thick: most of a pour's spheres were lost), while a convex
+piece pushes them back out of its volume.
 
 The sphere world is tuned as bullet3's own many-spheres examples are: a contact breaking
 threshold of a fraction of the sphere radius (the 0.02 m default makes every sphere keep

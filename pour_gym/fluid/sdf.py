@@ -18,15 +18,14 @@ import numpy as np
 import trimesh
 
 from pour_gym.errors import InputError
-from pour_gym.open3d_loader import open3d
+from pour_gym.io.open3d_loader import open3d
 
 # The fast-math flags of the fluid's compiled code: every one but "reassoc". With
 # reassociation LLVM may sum a particle's neighbours in another order wherever it inlines a
 # function, so the kernel compiled in a process and the same kernel loaded from numba's
-# on-disk cache gave different numbers (a settled column's density error 0.0286 against
-# 0.0304), and so did its serial and parallel builds. Without it, the serial and parallel
-# builds, compiled or cached, agree bit for bit (tests/test_fluid.py), at a cost in speed
-# measured in the README.
+# on-disk cache gave different numbers, and so did its serial and parallel builds. Without
+# it, the serial and parallel builds, compiled or cached, agree bit for bit
+# (tests/test_fluid.py); docs/fluid.md gives what it costs.
 FASTMATH = {"nnan", "ninf", "nsz", "arcp", "contract", "afn"}
 
 
@@ -36,8 +35,7 @@ def _no_refcount_option() -> dict:
     A compiled function that takes arrays counts references to them on every call (two
     atomic operations per array, in and out). The fluid's helpers are called once per
     particle, neighbour or wall sample, with up to nine arrays each: on one thread that
-    bookkeeping was a fifth of a Pour-v0 step (8.0-8.5 ms against 6.0-6.6 ms without it,
-    the median of one step from three random-action states). Functions compiled without the
+    bookkeeping is a large share of a step (docs/fluid.md). Functions compiled without the
     runtime may not allocate
     arrays (numba refuses to compile one that does, so this cannot go wrong silently);
     their callers hold the arrays alive.

@@ -24,15 +24,15 @@ from pybullet_utils.bullet_client import BulletClient
 from scipy.spatial.transform import Rotation
 
 from pour_gym.assets import LabelledAsset, load_asset
-from pour_gym.cache import cache_dir
 from pour_gym.errors import InputError, SimulationError
 from pour_gym.fluid.bullet import BodyCollider, BulletFluid, convex_parts
 from pour_gym.fluid.pbf import Collider, PBFConfig, PBFluid, quaternion, wall_distance
 from pour_gym.fluid.sdf import SignedDistanceField, build_sdf
+from pour_gym.io.cache import cache_dir
+from pour_gym.io.stdio import redirect_stdout_fd
 from pour_gym.sim.camera import Camera, render
 from pour_gym.sim.census import Census, take_census
 from pour_gym.sim.spawn import block, cavity_lattice, fill_lattice
-from pour_gym.stdio import redirect_stdout_fd
 
 FLUIDS = ("pbf", "bullet")
 TABLE_COLOR = (0.72, 0.60, 0.45, 1.0)
@@ -346,7 +346,8 @@ class World:
         n_sub = self.fluid.step(dt)
         if isinstance(self.fluid, PBFluid):
             # The bodies follow for rendering (the fluid collides with the fields). The
-            # quaternion by Shepperd's method: SciPy's took 0.2 ms a container, 5 % of a step.
+            # quaternion by Shepperd's method: a SciPy Rotation object costs more than the
+            # rest of the step's bookkeeping.
             for c in self.containers:
                 w, x, y, z = quaternion(c.rotation)
                 self.client.resetBasePositionAndOrientation(

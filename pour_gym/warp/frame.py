@@ -25,7 +25,7 @@ import trimesh
 from scipy.spatial.transform import Rotation
 
 from pour_gym.errors import NoWaterError
-from pour_gym.measure import (
+from pour_gym.mesh.measure import (
     azimuth_wedges,
     max_per_group,
     rim_band_mask,

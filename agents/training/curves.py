@@ -1,0 +1,204 @@
+"""Learning curves and the callbacks of a training run.
+
+A curve point is the deterministic policy's episodes on the training containers, scored by
+the env's task (:meth:`pour_gym.envs.task.Task.metrics`: success, return, and for a
+pouring task the amount error and the spill), appended to ``curve.csv`` (against
+environment steps) or ``bc_curve.csv`` (against behaviour-cloning gradient steps);
+``curve.png`` draws both.
+"""
+
+from __future__ import annotations
+
+import csv
+import sys
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+from pour_gym.agents.rollout import rollout, sb3_policy
+from pour_gym.agents.training.config import TrainConfig
+from pour_gym.agents.training.runs import BEST, Run, keep_if_best, save_normaliser
+from pour_gym.envs import make, mean_metrics, task_of
+
+# The curve's episodes start from seeds this far beyond the evaluation's first.
+CURVE_SEED_OFFSET = 500_000
+
+
+def record_curve_point(
+    config: TrainConfig,
+    out: Path,
+    model,
+    venv,
+    env_kwargs: dict,
+    name: str = "curve.csv",
+    x: tuple[str, int] | None = None,
+) -> dict:
+    """Evaluate the current policy on the training containers; append to ``name``.
+
+    Args:
+        config: the run's config (env, episodes and seeds of a point).
+        out: the run directory.
+        model: the SB3 algorithm.
+        venv: the training's vector env (its normaliser, if it is one, is used).
+        env_kwargs: the training env's arguments.
+        name: the CSV file.
+        x: the point's abscissa (name, value): the model's environment steps by default,
+            ``("bc_steps", k)`` for the behaviour-cloning curve (``bc_curve.csv``).
+
+    Returns:
+        The point: the abscissa and the task's metrics, each a mean over the episodes.
+    """
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    normaliser = venv if isinstance(venv, VecNormalize) else None
+    policy = sb3_policy(Run(model=model, config={}, normaliser=normaliser))
+    task = task_of(config.env)
+    env = make(config.env, **env_kwargs)
+    seed = config.eval_seed + CURVE_SEED_OFFSET
+    episodes = [rollout(env, policy, seed=seed + k) for k in range(config.curve_episodes)]
+    env.close()
+    key, value = x if x is not None else ("timesteps", int(model.num_timesteps))
+    point = {key: int(value), **mean_metrics(e.metrics(task) for e in episodes)}
+    path = out / name
+    new = not path.is_file()
+    with open(path, "a") as fh:
+        if new:
+            fh.write(",".join(point) + "\n")
+        fh.write(",".join(f"{v:g}" for v in point.values()) + "\n")
+    return point
+
+
+def read_curve(path: Path) -> dict[str, np.ndarray] | None:
+    """A learning curve's CSV as columns (None if missing or empty)."""
+    if not path.is_file():
+        return None
+    with open(path, newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    if not rows:
+        return None
+    return {
+        key: np.array([float(r[key]) if r[key] not in ("", "None") else np.nan for r in rows])
+        for key in rows[0]
+    }
+
+
+def plot_curve(out: Path, title: str) -> Path | None:
+    """``curve.png``: success and return against behaviour-cloning and environment steps.
+
+    One row per curve the run has: ``bc_curve.csv`` (during behaviour cloning on the
+    demonstrations, against gradient steps) and ``curve.csv`` (during training, against
+    environment steps). For a pouring task, a second panel shows the amount error and
+    the spill.
+    """
+    curves = [
+        (data, key, label)
+        for name, key, label in (
+            ("bc_curve.csv", "bc_steps", "behaviour-cloning gradient steps"),
+            ("curve.csv", "timesteps", "environment steps"),
+        )
+        if (data := read_curve(out / name)) is not None
+    ]
+    if not curves:
+        return None
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    pour = any(
+        "amount_error" in d and not np.all(np.isnan(d["amount_error"])) for d, _, _ in curves
+    )
+    fig, axes = plt.subplots(
+        len(curves), 2 if pour else 1, figsize=(11 if pour else 7, 4 * len(curves)),
+        squeeze=False,
+    )  # fmt: skip
+    for row, (data, key, label) in enumerate(curves):
+        ax = axes[row, 0]
+        steps = data[key]
+        ax.plot(steps, data["success"], "o-", label="success rate")
+        ax.set_xlabel(label)
+        ax.set_ylabel("success rate (deterministic policy)")
+        ax.set_ylim(-0.02, 1.02)
+        ax2 = ax.twinx()
+        ax2.plot(steps, data["return"], "s--", color="tab:orange", label="return")
+        ax2.set_ylabel("mean return")
+        ax.legend(loc="upper left", fontsize=8)
+        ax2.legend(loc="lower right", fontsize=8)
+        if pour:
+            ax = axes[row, 1]
+            ax.plot(steps, data["amount_error"], "o-", color="tab:red", label="|poured - target|")
+            ax.plot(steps, data["spilled"], "s--", color="tab:purple", label="spilled")
+            ax.set_xlabel(label)
+            ax.set_ylabel("particles (mean per episode)")
+            ax.legend(fontsize=8)
+    fig.suptitle(title, fontsize=9)
+    fig.tight_layout()
+    png = out / "curve.png"
+    fig.savefig(png, dpi=110)
+    plt.close(fig)
+    return png
+
+
+def training_callbacks(
+    config: TrainConfig, out: Path, total: int, done: int, n_envs: int, env_kwargs: dict
+):
+    """Checkpoints (with the normaliser), a progress bar and the learning curve.
+
+    Args:
+        config: the run's config.
+        out: the run directory.
+        total: the steps the run ends at.
+        done: the steps already taken (a resumed run's).
+        n_envs: environments stepped side by side.
+        env_kwargs: the training env's arguments (for the curve's episodes).
+    """
+    from stable_baselines3.common.callbacks import BaseCallback, CallbackList, CheckpointCallback
+
+    task = task_of(config.env)
+
+    class Bar(BaseCallback):
+        def _on_training_start(self) -> None:
+            self.bar = tqdm(total=total, initial=done, desc="train", file=sys.stderr)
+
+        def _on_step(self) -> bool:
+            self.bar.update(self.training_env.num_envs)
+            return True
+
+        def _on_training_end(self) -> None:
+            self.bar.close()
+
+    class Curve(BaseCallback):
+        """Success and return of the deterministic policy on the training containers."""
+
+        def __init__(self):
+            super().__init__()
+            self.next = (done // config.curve_every + 1) * config.curve_every
+
+        def _on_step(self) -> bool:
+            if self.num_timesteps >= self.next:
+                self.next += config.curve_every
+                point = record_curve_point(config, out, self.model, self.training_env, env_kwargs)
+                if config.keep_best:
+                    keep_if_best(out / BEST, point, self.model, self.training_env, task)
+            return True
+
+    class SaveNormaliser(BaseCallback):
+        def _on_step(self) -> bool:
+            if self.n_calls % max(config.checkpoint_every // n_envs, 1) == 0:
+                save_normaliser(self.training_env, out / "checkpoints", self.num_timesteps)
+            return True
+
+    callbacks = [
+        CheckpointCallback(
+            max(config.checkpoint_every // n_envs, 1),
+            str(out / "checkpoints"),
+            name_prefix="model",
+            save_replay_buffer=config.algo not in ("ppo",),
+        ),
+        SaveNormaliser(),
+        Bar(),
+    ]
+    if config.curve_every > 0:
+        callbacks.append(Curve())
+    return CallbackList(callbacks)

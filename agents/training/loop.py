@@ -1,0 +1,175 @@
+"""``train``: make the vector env, build or resume the algorithm, learn, save, evaluate."""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import json
+import shutil
+
+from pour_gym.agents.evaluate import evaluate_policy, evaluation_table
+from pour_gym.agents.rollout import sb3_policy
+from pour_gym.agents.training.bootstrap import start_from_demonstrations
+from pour_gym.agents.training.config import TrainConfig, algorithm
+from pour_gym.agents.training.curves import plot_curve, training_callbacks
+from pour_gym.agents.training.recipes import Recipe, load_recipe
+from pour_gym.agents.training.runs import (
+    BEST,
+    NORMALISER,
+    latest_checkpoint,
+    load_run,
+    save_normaliser,
+)
+from pour_gym.assets import expand_containers
+from pour_gym.envs import ENV_IDS, entry, make
+from pour_gym.errors import InputError
+
+
+def env_arguments(config: TrainConfig, recipe: Recipe) -> dict:
+    """A run's environment arguments, all but its containers.
+
+    The observation mode, then the recipe's ``env_kwargs``, then the run's own (which
+    win). Training, the learning curve, the evaluation and ``config.json`` all use these.
+    """
+    return {"obs_mode": config.obs_mode, **recipe.env_kwargs, **config.env_kwargs}
+
+
+def make_training_env(config: TrainConfig, recipe: Recipe, env_kwargs: dict):
+    """The vector env: workers when ``n_envs > 1``, wrapped and normalised as the recipe says.
+
+    Every worker makes its env through :func:`pour_gym.envs.make`, which registers the
+    ids in the worker's own process (a worker started from a Ray trial has not imported
+    pour-gym).
+    """
+    from stable_baselines3.common.env_util import make_vec_env
+    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNormalize
+
+    vector = {"vec_env_cls": DummyVecEnv}
+    if recipe.n_envs > 1:
+        vector = {"vec_env_cls": SubprocVecEnv, "vec_env_kwargs": {"start_method": "forkserver"}}
+    venv = make_vec_env(
+        functools.partial(make, config.env), n_envs=recipe.n_envs, seed=config.seed,
+        env_kwargs=env_kwargs, wrapper_class=recipe.wrapper(), **vector,
+    )  # fmt: skip
+    if recipe.normalize:
+        venv = VecNormalize(venv, **recipe.normalize)
+    return venv
+
+
+def train(config: TrainConfig) -> dict:
+    """Train (or resume) an SB3 agent, save it, and evaluate it on every container.
+
+    Returns:
+        The evaluation document (also written to ``eval.json``), with ``model`` and
+        ``timesteps``.
+
+    Raises:
+        InputError: a bad option or recipe (named), before any work.
+    """
+    from stable_baselines3.common.logger import configure
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    cls = algorithm(config.algo)
+    if config.timesteps <= 0:
+        raise InputError(f"--timesteps must be positive, not {config.timesteps}")
+    if config.keep_best and config.curve_every <= 0:
+        raise InputError("--keep-best picks among learning-curve points: add --curve-every N")
+    try:
+        entry(config.env)
+    except ValueError:
+        raise InputError(
+            f"unknown environment {config.env!r}; use one of {', '.join(ENV_IDS)}"
+        ) from None
+    recipe = load_recipe(config.env, config.algo, cls, config.overrides)
+    params = dict(recipe.hyperparameters)
+    demos_cfg = recipe.demonstrations
+    if demos_cfg:
+        if config.algo not in ("sac", "tqc"):
+            raise InputError(f"demonstrations need sac or tqc, not {config.algo}")
+        from pour_gym.agents.demonstrations import DemoReplayBuffer
+
+        params["replay_buffer_class"] = DemoReplayBuffer
+        params["replay_buffer_kwargs"] = {"demo_share": demos_cfg.share}
+    train_objects = list(expand_containers(config.objects))
+    arguments = env_arguments(config, recipe)
+    out = config.run_dir()
+    ckpt_dir = out / "checkpoints"
+    ckpt_dir.mkdir(parents=True, exist_ok=True)
+    record = {
+        **dataclasses.asdict(config),
+        "out": str(out),
+        "hyperparameters": {k: v for k, v in params.items() if k != "replay_buffer_class"},
+        "demonstrations": dataclasses.asdict(demos_cfg) if demos_cfg else None,
+        "n_envs": recipe.n_envs,
+        "policy": recipe.policy,
+        "normalize": recipe.normalize,
+        "env_wrapper": recipe.env_wrapper,
+        # What the environments were made with (recipe and run): evaluate uses it.
+        "env_kwargs": arguments,
+    }
+    (out / "config.json").write_text(json.dumps(record, indent=2))
+    import torch
+
+    # The learner and the environments' fluid share the cores: one thread for torch.
+    torch.set_num_threads(recipe.torch_threads)
+    env_kwargs = {"objects": train_objects, **arguments}
+    venv = make_training_env(config, recipe, env_kwargs)
+    checkpoint, done = latest_checkpoint(ckpt_dir)
+    if checkpoint is None:
+        # A fresh run owns its curves: a folder trained into before (a shipped model's, say)
+        # must not lend it old points.
+        for stale in ("curve.csv", "bc_curve.csv", f"{BEST}/point.json"):
+            (out / stale).unlink(missing_ok=True)
+        model = cls(recipe.policy, venv, seed=config.seed, verbose=0, device="cpu", **params)
+        if demos_cfg:
+            start_from_demonstrations(
+                config, model, venv, env_kwargs, demos_cfg, recipe.wrapper(), out
+            )
+    else:
+        stats = ckpt_dir / f"vecnormalize_{done}_steps.pkl"
+        if recipe.normalize and stats.is_file():
+            venv = VecNormalize.load(str(stats), venv.venv)
+        model = cls.load(checkpoint, env=venv, seed=config.seed, device="cpu")
+        buffer = ckpt_dir / f"model_replay_buffer_{done}_steps.pkl"
+        if buffer.is_file() and hasattr(model, "load_replay_buffer"):
+            model.load_replay_buffer(buffer)
+        demos = getattr(getattr(model, "replay_buffer", None), "demonstrations", None)
+        if demos_cfg and demos_cfg.bc_weight > 0 and demos is not None:
+            # The behaviour-cloning term lives in the actor's optimiser, not in the save.
+            from pour_gym.agents.demonstrations import regularise_actor
+
+            normaliser = venv if isinstance(venv, VecNormalize) else None
+            regularise_actor(model, demos, normaliser, weight=demos_cfg.bc_weight)
+    model.set_logger(configure(str(out), ["csv"]))
+    remaining = config.timesteps - done
+    if remaining > 0:
+        callbacks = training_callbacks(config, out, config.timesteps, done, recipe.n_envs,
+                                       env_kwargs)  # fmt: skip
+        model.learn(remaining, callback=callbacks, reset_num_timesteps=checkpoint is None)
+        # The finished run is a checkpoint too: running the command again only evaluates.
+        model.save(ckpt_dir / f"model_{model.num_timesteps}_steps.zip")
+        save_normaliser(venv, ckpt_dir, model.num_timesteps)
+    model.save(out / "model.zip")
+    save_normaliser(venv, out)
+    venv.close()
+    best = out / BEST
+    if config.keep_best and (best / "model.zip").is_file():
+        # The model is the best learning-curve point's (best/point.json says which).
+        for name in ("model.zip", NORMALISER):
+            if (best / name).is_file():
+                shutil.copyfile(best / name, out / name)
+    plot_curve(out, f"{config.env}, {config.algo}, {config.obs_mode}, {config.objects}")
+    run = load_run(out / "model.zip")
+    result = evaluate_policy(
+        sb3_policy(run),
+        config.env,
+        expand_containers(config.eval_objects),
+        config.eval_episodes,
+        seed=config.eval_seed,
+        env_kwargs=arguments,
+        trained_on=train_objects,
+    )
+    result.update(model=str(out / "model.zip"), timesteps=config.timesteps, algo=config.algo)
+    (out / "eval.json").write_text(json.dumps(result, indent=2) + "\n")
+    (out / "eval.md").write_text(evaluation_table(result) + "\n")
+    return result

@@ -1,0 +1,201 @@
+"""Training recipes: the entries of ``agents/hyperparams.yaml``, their keys declared.
+
+An entry (by environment id and algorithm) mixes the algorithm's constructor arguments
+with keys the training itself reads. :class:`Recipe` sorts them: every key in
+:data:`RECIPE_KEYS` is the training's, declared with its meaning; every other key goes to
+the algorithm, and one it does not take is refused by name. Environment wrappers and
+curricula follow rl-zoo3's ``env_wrapper`` convention: a list of ``module.Class`` names,
+each alone or with its keyword arguments.
+"""
+
+from __future__ import annotations
+
+import functools
+import importlib
+import inspect
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from importlib.resources import files
+
+import gymnasium as gym
+import yaml
+
+from pour_gym.errors import InputError
+
+# The keys the training reads (the rest are the algorithm's constructor arguments).
+RECIPE_KEYS = {
+    "n_envs": "environments stepped side by side (SubprocVecEnv workers when > 1)",
+    "policy": "the SB3 policy class name (MlpPolicy)",
+    "normalize": "VecNormalize's arguments (observations, rewards, clip, epsilon), or absent",
+    "env_kwargs": "environment arguments (reward weights, tilt control, ...); the run's win",
+    "env_wrapper": "wrappers around each training env, outermost last (rl-zoo3's convention)",
+    "torch_threads": "torch's threads (1: the fluid keeps the other cores)",
+    "demonstrations": "the scripted expert's episodes to start from (see DemoConfig)",
+}
+
+
+@dataclass
+class DemoConfig:
+    """The ``demonstrations`` key of a recipe: start an off-policy learner from the expert.
+
+    Record ``episodes`` episodes of the scripted policy (``expert``: its arguments) with
+    Gaussian ``noise`` on the executed actions (one standard deviation, or one per action)
+    and its clean actions as labels; keep them as a ``share`` of every replay batch;
+    behaviour-clone the actor on them for ``bc_steps`` steps and keep a cloning term of
+    weight ``bc_weight`` in its every update (:mod:`pour_gym.agents.demonstrations`). With
+    ``ignore_constant`` the network is blind to the inputs the demonstrations never vary,
+    and to the inputs ``hide`` names. SAC and TQC only (they have an actor).
+    """
+
+    episodes: int = 50
+    share: float = 0.5
+    bc_steps: int = 0
+    bc_weight: float = 0.0
+    noise: float | list[float] = 0.0
+    expert: dict = field(default_factory=dict)
+    ignore_constant: bool = False
+    hide: list[str] = field(default_factory=list)
+
+    @classmethod
+    def from_recipe(cls, value: dict) -> DemoConfig:
+        """From the recipe's mapping (InputError naming an unknown key)."""
+        names = {f for f in cls.__dataclass_fields__}
+        unknown = sorted(set(value) - names)
+        if unknown:
+            raise InputError(
+                f"unknown demonstrations keys {unknown}; use {', '.join(sorted(names))}"
+            )
+        noise = value.get("noise", 0.0)
+        return cls(
+            episodes=int(value.get("episodes", 50)),
+            share=float(value.get("share", 0.5)),
+            bc_steps=int(value.get("bc_steps", 0)),
+            bc_weight=float(value.get("bc_weight", 0.0)),
+            noise=[float(n) for n in noise] if isinstance(noise, list) else float(noise),
+            expert=dict(value.get("expert") or {}),
+            ignore_constant=bool(value.get("ignore_constant", False)),
+            hide=[str(name) for name in value.get("hide") or []],
+        )
+
+
+@dataclass
+class Recipe:
+    """One entry of ``hyperparams.yaml``, its keys sorted by who reads them.
+
+    Attributes:
+        hyperparameters: the algorithm's constructor arguments.
+        n_envs, policy, normalize, env_kwargs, env_wrapper, torch_threads, demonstrations:
+            the training's own keys (:data:`RECIPE_KEYS`).
+    """
+
+    hyperparameters: dict
+    n_envs: int = 1
+    policy: str = "MlpPolicy"
+    normalize: dict | None = None
+    env_kwargs: dict = field(default_factory=dict)
+    env_wrapper: list = field(default_factory=list)
+    torch_threads: int = 1
+    demonstrations: DemoConfig | None = None
+
+    def wrapper(self) -> Callable[[gym.Env], gym.Env] | None:
+        """A function that wraps an env in :attr:`env_wrapper`'s wrappers (None if none).
+
+        It pickles by reference, so vector envs' worker processes rebuild it.
+        """
+        specs = wrapper_specs(self.env_wrapper)
+        return functools.partial(wrap_env, specs=specs) if specs else None
+
+
+def load_hyperparameters(env_id: str, algo: str) -> dict:
+    """The packaged recipe entry (``agents/hyperparams.yaml``) for an env and algorithm."""
+    table = yaml.safe_load(files("pour_gym.agents").joinpath("hyperparams.yaml").read_text())
+    name = env_id.split(":")[-1]
+    if name not in table:
+        raise InputError(f"no hyperparameters for {env_id!r}; known: {', '.join(table)}")
+    if algo not in table[name]:
+        raise InputError(f"no {algo!r} hyperparameters for {env_id}; known: {list(table[name])}")
+    return dict(table[name][algo])
+
+
+def load_recipe(env_id: str, algo: str, algorithm_class, overrides: dict | None = None) -> Recipe:
+    """The recipe for an env and algorithm, with a run's overrides, checked.
+
+    Args:
+        env_id: the environment id.
+        algo: the algorithm's name.
+        algorithm_class: the SB3 algorithm class (its constructor's arguments are the
+            hyperparameters it takes).
+        overrides: recipe keys that replace the YAML's.
+
+    Raises:
+        InputError: a key neither the training's nor the algorithm's; bad wrappers or
+            demonstrations.
+    """
+    params = {**load_hyperparameters(env_id, algo), **(overrides or {})}
+    own = {k: params.pop(k) for k in list(params) if k in RECIPE_KEYS}
+    takes = set(inspect.signature(algorithm_class).parameters) - {"self", "policy", "env"}
+    unknown = sorted(set(params) - takes)
+    if unknown:
+        raise InputError(
+            f"unknown recipe key(s) {', '.join(unknown)} for {algorithm_class.__name__}: the "
+            f"training reads {', '.join(RECIPE_KEYS)}, the algorithm takes "
+            f"{', '.join(sorted(takes))}"
+        )
+    demos = own.get("demonstrations")
+    recipe = Recipe(
+        hyperparameters=params,
+        n_envs=int(own.get("n_envs", 1)),
+        policy=str(own.get("policy", "MlpPolicy")),
+        normalize=own.get("normalize"),
+        env_kwargs=dict(own.get("env_kwargs") or {}),
+        env_wrapper=list(_as_list(own.get("env_wrapper"))),
+        torch_threads=int(own.get("torch_threads", 1)),
+        demonstrations=DemoConfig.from_recipe(demos) if demos else None,
+    )
+    wrapper_specs(recipe.env_wrapper)  # refuse a bad wrapper before any work
+    return recipe
+
+
+def _as_list(value) -> list:
+    if value is None:
+        return []
+    return value if isinstance(value, list) else [value]
+
+
+def wrapper_specs(entries: list) -> list[tuple[str, dict]]:
+    """``env_wrapper`` entries as (``module.Class``, kwargs), each class importable.
+
+    Raises:
+        InputError: an entry that is neither a name nor a one-key mapping, or a class that
+            cannot be imported.
+    """
+    specs = []
+    for item in entries:
+        if isinstance(item, str):
+            name, kwargs = item, {}
+        elif isinstance(item, dict) and len(item) == 1:
+            name, kwargs = next(iter(item.items()))
+            kwargs = dict(kwargs or {})
+        else:
+            raise InputError(
+                f"an env_wrapper entry is 'module.Class' or {{'module.Class': {{kwargs}}}}, "
+                f"not {item!r}"
+            )
+        _wrapper_class(name)
+        specs.append((name, kwargs))
+    return specs
+
+
+def _wrapper_class(name: str) -> type:
+    module, _, cls = name.rpartition(".")
+    try:
+        return getattr(importlib.import_module(module), cls)
+    except (ImportError, AttributeError, ValueError):
+        raise InputError(f"env_wrapper names {name!r}, which cannot be imported") from None
+
+
+def wrap_env(env: gym.Env, specs: list[tuple[str, dict]]) -> gym.Env:
+    """``env`` wrapped in each (``module.Class``, kwargs) of ``specs``, first innermost."""
+    for name, kwargs in specs:
+        env = _wrapper_class(name)(env, **kwargs)
+    return env

@@ -1,0 +1,149 @@
+"""Run directories: trained models with their config and normaliser, checkpoints, the best.
+
+A run directory holds everything a run makes: ``config.json`` (the exact arguments and
+recipe), ``checkpoints/`` (model, observation normaliser and, for off-policy algorithms,
+replay buffer every ``checkpoint_every`` steps), ``progress.csv`` (SB3's logger),
+``curve.csv`` / ``bc_curve.csv`` and ``curve.png`` (:mod:`~pour_gym.agents.training.curves`),
+``model.zip`` with ``vecnormalize.pkl`` beside it when observations are normalised, and
+``eval.json`` / ``eval.md``. With ``--keep-best``, ``best/`` holds the model of the best
+learning-curve point so far (``point.json``).
+"""
+
+from __future__ import annotations
+
+import json
+import pickle
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from pour_gym.agents.training.config import algorithm
+from pour_gym.assets import expand_containers
+from pour_gym.envs import Task
+from pour_gym.errors import InputError
+
+NORMALISER = "vecnormalize.pkl"
+BEST = "best"  # the run's folder of the best learning-curve point (--keep-best)
+# Trained models shipped with the package, one folder each (model.zip, config.json, ...).
+MODELS = Path(__file__).resolve().parents[1] / "models"
+
+
+@dataclass
+class Run:
+    """A trained model with what it needs to act: its config and observation normaliser.
+
+    Attributes:
+        model: the SB3 algorithm.
+        config: the run's ``config.json`` (empty if there was none).
+        normaliser: a ``VecNormalize`` with the training's statistics, or None.
+    """
+
+    model: object
+    config: dict
+    normaliser: object | None = None
+
+    def env_kwargs(self) -> dict:
+        """The environment arguments the model acts in (its observation mode, its run's)."""
+        return {
+            "obs_mode": self.config.get("obs_mode", "features"),
+            **self.config.get("env_kwargs", {}),
+        }
+
+    def trained_on(self) -> list[str]:
+        """The containers the model was trained on."""
+        return list(expand_containers(self.config.get("objects") or "train"))
+
+    def normalise(self, obs: np.ndarray) -> np.ndarray:
+        """An observation as the model saw them in training."""
+        if self.normaliser is None:
+            return obs
+        return self.normaliser.normalize_obs(obs)
+
+
+def shipped_models() -> list[str]:
+    """The names of the trained models that ship with pour-gym (``agents/models/<name>``)."""
+    return sorted(p.parent.name for p in MODELS.glob("*/model.zip"))
+
+
+def load_run(model_path: str | Path, algo: str | None = None) -> Run:
+    """Load ``model.zip`` with the ``config.json`` and ``vecnormalize.pkl`` beside it.
+
+    Args:
+        model_path: the model file, or the name of a shipped model (:func:`shipped_models`).
+        algo: the algorithm, if there is no ``config.json`` to say it.
+
+    Raises:
+        InputError: no such file, or no way to tell the algorithm.
+    """
+    path = Path(model_path)
+    if not path.is_file():
+        shipped = MODELS / str(model_path) / "model.zip"
+        if not shipped.is_file():
+            names = ", ".join(shipped_models()) or "none"
+            raise InputError(
+                f"no model file {str(model_path)!r}: give a model.zip or a shipped model ({names})"
+            )
+        path = shipped
+    config_path = path.parent / "config.json"
+    config = json.loads(config_path.read_text()) if config_path.is_file() else {}
+    name = config.get("algo", algo)
+    if name is None:
+        raise InputError(f"which algorithm made {path.name}? pass --algo (sac, ppo, td3, tqc)")
+    model = algorithm(name).load(path, device="cpu")
+    normaliser = None
+    stats = path.parent / NORMALISER
+    if stats.is_file():
+        with open(stats, "rb") as fh:
+            normaliser = pickle.load(fh)  # a VecNormalize without its env
+        normaliser.training = False
+        normaliser.norm_reward = False
+    return Run(model=model, config=config, normaliser=normaliser)
+
+
+def latest_checkpoint(directory: Path) -> tuple[Path | None, int]:
+    """The newest ``model_<steps>_steps.zip`` in a checkpoint folder, and its steps."""
+    best, steps = None, 0
+    for path in directory.glob("model_*_steps.zip"):
+        n = int(re.search(r"_(\d+)_steps", path.name).group(1))
+        if n > steps:
+            best, steps = path, n
+    return best, steps
+
+
+def save_normaliser(venv, folder: Path, steps: int | None = None) -> None:
+    """Save a ``VecNormalize``'s statistics (nothing for other vector envs)."""
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    if isinstance(venv, VecNormalize):
+        name = NORMALISER if steps is None else f"vecnormalize_{steps}_steps.pkl"
+        venv.save(str(folder / name))
+
+
+def _rank(point: dict, task: Task) -> tuple[float, float]:
+    """Higher is better: success, then minus the amount error (pouring) or the return."""
+    return (point["success"], -point["amount_error"] if task.pours else point["return"])
+
+
+def keep_if_best(folder: Path, point: dict, model, venv, task: Task) -> bool:
+    """Save the model and normaliser in ``folder`` if ``point`` beats the one kept there.
+
+    Args:
+        folder: where the best point's model, normaliser and ``point.json`` are kept.
+        point: a learning-curve point (the task's metrics).
+        model: the SB3 algorithm.
+        venv: the training's vector env (its normaliser is saved, if it is one).
+        task: the env's task (what ranks second after success).
+
+    Returns:
+        Whether it was kept.
+    """
+    kept = folder / "point.json"
+    if kept.is_file() and _rank(json.loads(kept.read_text()), task) >= _rank(point, task):
+        return False
+    folder.mkdir(parents=True, exist_ok=True)
+    model.save(folder / "model.zip")
+    save_normaliser(venv, folder)
+    kept.write_text(json.dumps(point) + "\n")
+    return True

@@ -1,0 +1,372 @@
+"""What holds the source container in a pouring env: nothing (it floats), or a robot arm.
+
+The pouring task (:class:`~pour_gym.envs.pour.PourEnv`) composes a holder, as panda-gym
+composes a robot with a task: the task owns the containers, the fluid, the observation,
+the reward and the endings; the holder owns how an action moves the source, what extra
+inputs, costs and failures the holding body brings, and its part of ``info``.
+``PourGym/Pour-v0`` is the task with :class:`FreeHolder`, ``PourGym/PandaPour-v0`` with
+:class:`PandaHolder`; a second arm is a new holder in :data:`HOLDERS`, not a new env.
+"""
+
+from __future__ import annotations
+
+import inspect
+from typing import TYPE_CHECKING, ClassVar
+
+import numpy as np
+from gymnasium import spaces
+from scipy.spatial.transform import Rotation
+
+from pour_gym.sim import Camera
+from pour_gym.sim.panda import ARM_JOINTS, REST_POSES, SEED_OFFSETS, Grasp, Panda, grasp
+
+if TYPE_CHECKING:
+    from pour_gym.envs.pour import PourEnv
+    from pour_gym.features import ContainerGeometry
+
+PANDA_CONTROLS = ("ee", "joints")
+JOINT_NAMES = tuple(f"joint{j + 1}_position" for j in ARM_JOINTS) + tuple(
+    f"joint{j + 1}_velocity" for j in ARM_JOINTS
+)
+
+
+class Holder:
+    """The source's holder: the hooks :class:`~pour_gym.envs.pour.PourEnv` calls.
+
+    Attributes:
+        name: the holder's name in :data:`HOLDERS` (``PourEnv(holder=name)``).
+        solid: whether the world's containers need collision shapes (an arm touches them).
+        obs_names: the names of the inputs the holder adds to the observation.
+    """
+
+    name: ClassVar[str]
+    solid: ClassVar[bool] = False
+    obs_names: tuple[str, ...] = ()
+
+    def reward_weights(self) -> dict[str, float]:
+        """The weights of the reward terms the holder adds (:meth:`reward_terms`)."""
+        return {}
+
+    def action_space(self) -> spaces.Box:
+        """The env's action space: lip velocity (x, y, z) and the tilt action."""
+        return spaces.Box(-1.0, 1.0, (4,), np.float32)
+
+    def source_frame(self, gs: ContainerGeometry) -> tuple[np.ndarray, np.ndarray]:
+        """The source's upright rotation and its lip in its frame (m)."""
+        raise NotImplementedError
+
+    def hold(self, env: PourEnv) -> None:
+        """At reset: put the source at ``env.lip`` and ``env.tilt``."""
+        raise NotImplementedError
+
+    def move(self, env: PourEnv, a: np.ndarray) -> None:
+        """Send the source where the action says, for the end of this step."""
+        raise NotImplementedError
+
+    def failure(self, env: PourEnv) -> str | None:
+        """Why the episode failed at this step, if it did."""
+        return None
+
+    def reward_terms(self, env: PourEnv) -> dict[str, float]:
+        """The holder's reward terms, unweighted, by the names of its weights."""
+        return {}
+
+    def control_cost(self, env: PourEnv, a: np.ndarray) -> float:
+        """The ``control`` term: -(mean square of the lip velocity actions)."""
+        return -float(np.mean(a[:3] ** 2))
+
+    def observation(self, env: PourEnv) -> np.ndarray | None:
+        """The holder's inputs, appended to the task's observation (None: none)."""
+        return None
+
+    def info(self) -> dict:
+        """The holder's entries of the step's info."""
+        return {}
+
+    def camera(self, env: PourEnv) -> Camera | None:
+        """Where pictures are taken from at this episode (None: the task's camera)."""
+        return None
+
+    def describe(self) -> str:
+        """A short description for the env's ``repr``."""
+        return self.name
+
+
+class FreeHolder(Holder):
+    """Nothing holds the source: it floats where the action puts it (Pour-v0).
+
+    The source is turned half a turn about the vertical, so that its handle (on +x in a
+    container's frame) is away from the target and its lip is the rim point on its -x
+    side. It moves kinematically; the fluid moves it smoothly over each step, in as many
+    substeps as the motion needs.
+    """
+
+    name = "free"
+
+    def source_frame(self, gs: ContainerGeometry) -> tuple[np.ndarray, np.ndarray]:
+        """Half a turn about the vertical: the handle away from the target, the lip +x."""
+        rotation = Rotation.from_euler("z", np.pi).as_matrix()
+        return rotation, np.array([gs.rim_center[0] - gs.rim_radius, gs.rim_center[1], gs.height])
+
+    def hold(self, env: PourEnv) -> None:
+        """Put the source at the lip and tilt (held by nothing)."""
+        env.world.teleport(env.source, *env.source_pose(env.lip, env.tilt))
+
+    def move(self, env: PourEnv, a: np.ndarray) -> None:
+        """The commanded lip and tilt, reached over the step."""
+        env.lip, env.tilt = env.commanded(a)
+        env.world.set_pose(env.source, *env.source_pose(env.lip, env.tilt))
+
+
+class PandaHolder(Holder):
+    """PourGym/PandaPour-v0: the source container in the gripper of a Franka Panda arm.
+
+    ## Description
+    Pour-v0's task, containers, fluid, observations, rewards and reset options, with the
+    source held by a Panda (``pybullet_data``'s ``franka_panda/panda.urdf``) standing at
+    the table's edge 0.6 m to the side of the source's start (at y = -0.6 m, reaching
+    along +y); the source is turned so that its handle faces the arm and its lip the
+    target (+x). At reset the source is in the gripper, filled, above the table: a cup held
+    by its handle (the fingers across the handle, the hand approaching horizontally), a
+    container without a handle pinched on its rim wall from above, on the side away from
+    its lip (:func:`pour_gym.sim.panda.grasp`). The container is rigidly attached to the
+    hand (its pose is the hand's times the grasp: it cannot slip), and the fluid's
+    substeps take its pose from the hand, interpolated over each 0.1 s step. The fluid
+    collides with the containers, not with the arm or the fingers (they never reach into
+    a cavity).
+
+    The arm moves kinematically: each step its joints go to targets within their limits,
+    each at most its velocity limit (2.175 / 2.61 rad/s). The arm, the held container,
+    the target and the table collide: the containers have collision shapes (V-HACD convex
+    pieces, as the ``bullet`` fluid's), and after every move pybullet is asked whether
+    the arm or the held container touches the target or the table. A touch ends the
+    episode as a failure, its reason in ``info["failure"]`` (the target is not pushed
+    around: the touch that would start knocking it over ends the episode, and the
+    contact dynamics at 240 Hz, which would cost about two thirds of a fluid step, are
+    not simulated).
+
+    ## Action Space
+    ``control="ee"`` (default): as Pour-v0, ``Box(-1, 1, (4,), float32)``: lip velocity
+    (x, y, z, times ``max_speed``) and tilt rate (or tilt angle with
+    ``tilt_control="angle"``), turned into joint targets by pybullet's inverse kinematics
+    with the joint limits and a rest pose. What the arm cannot follow (out of reach, a
+    joint at its limit, faster than a joint may move) is left undone, never an error:
+    ``info["lip_error_m"]`` and ``info["tilt_error_deg"]`` say how far the pose reached
+    is from the one commanded, ``info["clipped_joints"]`` how many joints a limit held
+    back. The next step starts from the pose reached. ``control="joints"``: ``Box(-1, 1,
+    (7,), float32)``, each joint's velocity over its limit.
+
+    ## Observation Space
+    Pour-v0's observation (``obs_mode="features"``: the 16 warped features;
+    ``"state"``: the 19 raw quantities) with the lip and the tilt as the arm reached them,
+    then the 7 joint positions over their ranges (-1 to 1) and the 7 joint velocities over
+    their limits (``JOINT_NAMES``): ``Box(-10, 10, (30,))`` or ``(33,)``.
+
+    ## Rewards
+    Pour-v0's terms and weights, plus ``joint_limit`` = -(share of the seven joints within
+    0.02 rad of a limit) and ``collision`` = -1 on the step the arm or the held container
+    touches the target or the table, weighted by ``joint_limit_weight`` and
+    ``collision_weight``; ``info["reward_<term>"]`` holds each weighted term. With
+    ``control="joints"`` the ``control`` term is -(mean square of the joint actions).
+
+    ## Starting State
+    As Pour-v0; the arm's joints from inverse kinematics from its rest pose to the grasp of
+    the source at the start (``info["lip_error_m"]`` is its error; the docs' PandaPour-v0
+    page gives it per container).
+
+    ## Episode End
+    As Pour-v0, and a touch of the target or the table (a failure).
+
+    ## Arguments
+    Every argument of Pour-v0 (:class:`pour_gym.envs.pour.PourEnv`), and:
+
+    | argument | type | default | meaning |
+    |---|---|---|---|
+    | ``control`` | str | ``"ee"`` | ``"ee"`` (lip and tilt) or ``"joints"`` (joint velocities) |
+    | ``joint_limit_weight`` | float | 0.1 | weight of ``joint_limit`` |
+    | ``collision_weight`` | float | 1.0 | weight of ``collision`` |
+
+    ``gym.make("PourGym/PandaPour-v0", ...)`` is ``PourEnv(holder="panda", ...)``.
+
+    ## Version History
+    * v0 (this release). The arm became a holder that Pour-v0's task composes (it was a
+      subclass of it); nothing an episode does changed.
+    """
+
+    name = "panda"
+    solid = True
+
+    def __init__(
+        self, control: str = "ee", joint_limit_weight: float = 0.1, collision_weight: float = 1.0
+    ):
+        if control not in PANDA_CONTROLS:
+            raise ValueError(f"control must be one of {PANDA_CONTROLS}, not {control!r}")
+        self.control = control
+        self.weights = {"joint_limit": joint_limit_weight, "collision": collision_weight}
+        self.obs_names = JOINT_NAMES
+        self._panda: Panda | None = None
+        self._grasps: dict[str, Grasp] = {}
+        self._q = np.zeros(len(ARM_JOINTS))  # the joints the arm was last set to, rad
+        self._qd = np.zeros(len(ARM_JOINTS))
+        self._clipped = np.zeros(len(ARM_JOINTS), dtype=bool)
+        self._lip_error = 0.0
+        self._tilt_error = 0.0
+        self._failed: str | None = None
+
+    def reward_weights(self) -> dict[str, float]:
+        """``joint_limit`` and ``collision``."""
+        return dict(self.weights)
+
+    def action_space(self) -> spaces.Box:
+        """Pour-v0's four actions (``"ee"``), or one velocity per joint (``"joints"``)."""
+        if self.control == "joints":
+            return spaces.Box(-1.0, 1.0, (len(ARM_JOINTS),), np.float32)
+        return super().action_space()
+
+    def describe(self) -> str:
+        """``panda`` and its control."""
+        return f"panda, control={self.control}"
+
+    def panda(self, env: PourEnv) -> Panda:
+        """The arm (loaded into the env's world's client at the first reset)."""
+        if self._panda is None or self._panda.client is not env.world.client:
+            self._panda = Panda(env.world.client)
+        return self._panda
+
+    def _grasp(self, env: PourEnv) -> Grasp:
+        name = env._names["source"]
+        if name not in self._grasps:
+            self._grasps[name] = grasp(env.source.asset)
+        return self._grasps[name]
+
+    def _hand_goal(self, env: PourEnv, lip: np.ndarray, tilt: float):
+        """Where the grasp frame goes for the source's lip at ``lip`` (m), tilted (deg)."""
+        g = self._grasp(env)
+        position, rotation = env.source_pose(lip, tilt)
+        return rotation @ g.position + position, rotation @ g.rotation
+
+    def source_frame(self, gs: ContainerGeometry) -> tuple[np.ndarray, np.ndarray]:
+        """A quarter turn about the vertical: the handle faces the arm (-y), the lip +x."""
+        rotation = Rotation.from_euler("z", -np.pi / 2).as_matrix()
+        return rotation, np.array([gs.rim_center[0], gs.rim_center[1] + gs.rim_radius, gs.height])
+
+    def hold(self, env: PourEnv) -> None:
+        """The arm takes the source at its start: inverse kinematics from the rest pose."""
+        panda = self.panda(env)
+        g = self._grasp(env)
+        panda.rest = np.array(REST_POSES[g.kind])
+        panda.set_joints(panda.rest, fingers=0.5 * g.width)
+        goal = self._hand_goal(env, env.lip, env.tilt)
+        seeds = [panda.rest] + [panda.rest + np.array(d) for d in SEED_OFFSETS]
+        self._q = panda.reach(*goal, seeds)
+        panda.set_joints(self._q)
+        self._qd = np.zeros(len(ARM_JOINTS))
+        self._clipped = np.zeros(len(ARM_JOINTS), dtype=bool)
+        self._failed = None
+        commanded = env.lip.copy()
+        self._follow_hand(env, teleport=True)
+        self._lip_error = float(np.linalg.norm(env.lip - commanded))
+        self._tilt_error = abs(env.tilt)
+
+    def _follow_hand(self, env: PourEnv, teleport: bool = False) -> None:
+        """Pose the source as the hand holds it; the lip and tilt are then what it reached."""
+        g = self._grasp(env)
+        hand_position, hand_rotation = self.panda(env).hand_pose()
+        rotation = hand_rotation @ g.rotation.T
+        position = hand_position - rotation @ g.position
+        if teleport:
+            env.world.teleport(env.source, position, rotation)
+        else:
+            env.world.set_pose(env.source, position, rotation)
+        env.lip = rotation @ env.lip_local + position
+        # Pour-v0 tilts about y: the container's axis is (sin tilt, 0, cos tilt).
+        env.tilt = float(np.degrees(np.arctan2(rotation[0, 2], rotation[2, 2])))
+
+    def move(self, env: PourEnv, a: np.ndarray) -> None:
+        """Joint targets for the action, reached within the arm's limits; the source follows."""
+        panda = self.panda(env)
+        q0 = self._q
+        if self.control == "ee":
+            lip, tilt = env.commanded(a)
+            pose = self._hand_goal(env, lip, tilt)
+            q, self._clipped = panda.follow(*pose, env.dt)
+        else:
+            q, self._clipped = panda.limit(q0 + a * panda.max_velocity * env.dt, env.dt)
+        panda.set_joints(q)
+        self._q = q
+        self._qd = (q - q0) / env.dt
+        self._follow_hand(env)
+        if self.control == "ee":
+            self._lip_error = float(np.linalg.norm(env.lip - lip))
+            self._tilt_error = abs(env.tilt - tilt)
+        else:
+            self._lip_error = self._tilt_error = 0.0
+
+    def failure(self, env: PourEnv) -> str | None:
+        """A touch of the target or the table by the arm or the held container."""
+        client, panda = env.world.client, self.panda(env)
+        table = env.world.table_body
+        source, target = env.source.body, env.target.body
+        self._failed = None
+        if client.getClosestPoints(source, target, 0.0):
+            self._failed = "the held container touched the target"
+        elif table is not None and client.getClosestPoints(source, table, 0.0):
+            self._failed = "the held container hit the table"
+        elif panda.touching(target):
+            self._failed = "the arm touched the target"
+        elif table is not None and panda.touching(table):
+            self._failed = "the arm hit the table"
+        return self._failed
+
+    def reward_terms(self, env: PourEnv) -> dict[str, float]:
+        """``joint_limit`` and ``collision``, unweighted."""
+        return {
+            "joint_limit": -float(np.mean(self.panda(env).at_limit(self._q))),
+            "collision": -1.0 if self._failed else 0.0,
+        }
+
+    def control_cost(self, env: PourEnv, a: np.ndarray) -> float:
+        """Pour-v0's, or -(mean square of the joint actions) with ``control="joints"``."""
+        if self.control == "joints":
+            return -float(np.mean(a**2))
+        return super().control_cost(env, a)
+
+    def observation(self, env: PourEnv) -> np.ndarray:
+        """The joints' positions and velocities, normalised (see ``JOINT_NAMES``)."""
+        return self.panda(env).normalised(self._q, self._qd)
+
+    def info(self) -> dict:
+        """``failure``, ``lip_error_m``, ``tilt_error_deg``, ``clipped_joints``."""
+        return {
+            "failure": self._failed or "",
+            "lip_error_m": self._lip_error,
+            "tilt_error_deg": self._tilt_error,
+            "clipped_joints": int(np.count_nonzero(self._clipped)),
+        }
+
+    def camera(self, env: PourEnv) -> Camera:
+        """Over the containers, at the arm behind them."""
+        mid = 0.5 * (env.lip + env.target_pos)
+        return Camera(target=(float(mid[0]), -0.12, 0.2), distance=0.8, yaw=150.0, pitch=-22.0)
+
+
+HOLDERS: dict[str, type[Holder]] = {"free": FreeHolder, "panda": PandaHolder}
+
+
+def make_holder(name: str, **kwargs) -> Holder:
+    """A holder by name, with its arguments.
+
+    Raises:
+        ValueError: an unknown holder, or arguments it does not take (named).
+    """
+    if name not in HOLDERS:
+        raise ValueError(f"holder must be one of {', '.join(HOLDERS)}, not {name!r}")
+    cls = HOLDERS[name]
+    takes = set(inspect.signature(cls).parameters)
+    unknown = sorted(set(kwargs) - takes)
+    if unknown:
+        raise ValueError(
+            f"unknown argument(s) {', '.join(unknown)}: neither the pouring task's nor the "
+            f"{name!r} holder's ({cls.__name__} takes {', '.join(sorted(takes)) or 'none'})"
+        )
+    return cls(**kwargs)

@@ -1,0 +1,121 @@
+"""The one list of pour-gym's environments: ids, entry points, episode lengths, arguments.
+
+Adding an environment is adding an :class:`EnvEntry` to :data:`ENVS`: ``import pour_gym``
+registers it with Gymnasium, and the generic tests (API checks, determinism, pickling,
+bad actions, the soak) run over every entry with its ``quick`` arguments.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+import gymnasium as gym
+from gymnasium.envs.registration import load_env_creator, register, registry
+
+if TYPE_CHECKING:
+    from pour_gym.envs.task import Task
+
+NAMESPACE = "PourGym"
+POUR_V0 = "PourGym/Pour-v0"
+PANDA_POUR_V0 = "PourGym/PandaPour-v0"
+PARTICLE_DROP_V0 = "PourGym/ParticleDrop-v0"
+TILT_POUR_V0 = "PourGym/TiltPour-v0"
+# Small fluids for a pouring episode that takes seconds, not minutes.
+_QUICK_POUR = {"source_particles": 300, "amount_range": (40, 80)}
+
+
+@dataclass(frozen=True)
+class EnvEntry:
+    """One registered environment.
+
+    Attributes:
+        id: the Gymnasium id, ``PourGym/<Name>-v<N>``.
+        entry_point: ``"module:Class"``.
+        max_episode_steps: truncation (Gymnasium's ``TimeLimit``).
+        kwargs: arguments the id fixes (e.g. the holder of the source).
+        quick: arguments for a short episode (small fluids): what tests, examples and
+            smoke runs pass.
+        doc: ``"module:name"`` of the class whose docstring documents the id (its docs
+            page); default: the entry point's.
+    """
+
+    id: str
+    entry_point: str
+    max_episode_steps: int
+    kwargs: dict = field(default_factory=dict)
+    quick: dict = field(default_factory=dict)
+    doc: str = ""
+
+    @property
+    def slug(self) -> str:
+        """The id's file name stem: ``pour-v0`` for ``PourGym/Pour-v0``."""
+        return self.id.split("/")[-1].lower()
+
+
+ENVS: tuple[EnvEntry, ...] = (
+    EnvEntry(POUR_V0, "pour_gym.envs.pour:PourEnv", 250, quick=_QUICK_POUR),
+    EnvEntry(PARTICLE_DROP_V0, "pour_gym.envs.particle_drop:ParticleDropEnv", 1),
+    EnvEntry(TILT_POUR_V0, "pour_gym.envs.tilt_pour:TiltPourEnv", 1),
+    EnvEntry(
+        PANDA_POUR_V0,
+        "pour_gym.envs.pour:PourEnv",
+        250,
+        kwargs={"holder": "panda"},
+        quick=_QUICK_POUR,
+        doc="pour_gym.envs.holders:PandaHolder",
+    ),
+)
+ENV_IDS: tuple[str, ...] = tuple(e.id for e in ENVS)
+
+
+def register_envs() -> None:
+    """Register every entry of :data:`ENVS` with Gymnasium (once)."""
+    for e in ENVS:
+        if e.id not in registry:
+            register(
+                id=e.id,
+                entry_point=e.entry_point,
+                max_episode_steps=e.max_episode_steps,
+                kwargs=dict(e.kwargs),
+            )
+
+
+def entry(env_id: str) -> EnvEntry:
+    """The entry of an id (Gymnasium's ``"module:Id"`` form too).
+
+    Raises:
+        ValueError: not a pour-gym id; the message lists them.
+    """
+    name = env_id.split(":")[-1]
+    for e in ENVS:
+        if e.id == name:
+            return e
+    raise ValueError(f"unknown environment {env_id!r}; pour-gym has {', '.join(ENV_IDS)}")
+
+
+def task_of(env) -> Task:
+    """The :class:`~pour_gym.envs.task.Task` of an environment, its id, or its class.
+
+    Raises:
+        ValueError: an id that is not pour-gym's, or an object with no task.
+    """
+    if isinstance(env, str):
+        creator = load_env_creator(entry(env).entry_point)
+    else:
+        creator = getattr(env, "unwrapped", env)
+    task = getattr(creator, "task", None)
+    if task is None:
+        raise ValueError(f"{env!r} is not a pour-gym environment (it has no task)")
+    return task
+
+
+def make(env_id: str, **kwargs) -> gym.Env:
+    """``gymnasium.make`` with pour-gym's ids registered first.
+
+    A vector env's worker process, or a Ray worker, unpickles this function (a
+    ``functools.partial`` of it) by importing this module, which registers the ids: a
+    worker never meets ``NamespaceNotFound``.
+    """
+    register_envs()
+    return gym.make(env_id, **kwargs)

@@ -1,0 +1,7 @@
+"""The applications built on the library: the command line, benchmarks, soak and demo.
+
+``pour-gym`` (:mod:`~pour_gym.apps.cli`, its subcommands in
+:mod:`~pour_gym.apps.commands`), the benchmarks (:mod:`~pour_gym.apps.bench`), the
+random-action soak (:mod:`~pour_gym.apps.soak`) and the demo (:mod:`~pour_gym.apps.demo`).
+Nothing in the library imports them.
+"""

@@ -1,0 +1,462 @@
+"""The ``pour-gym`` subcommands: each takes the parsed arguments and returns an :data:`Output`.
+
+They are adapters: every one calls the library (or :mod:`pour_gym.apps`) and formats what
+it returns; :mod:`pour_gym.apps.cli` builds the parser and prints.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Callable
+from pathlib import Path
+
+from pour_gym.envs import POUR_V0, task_of
+from pour_gym.errors import ClosedContainerError, InputError
+from pour_gym.report.tables import text_table
+
+Output = tuple[object, Callable[[], str]]
+"""What a command returns: the JSON document and a function that formats it as text."""
+
+
+def cmd_objects(args: argparse.Namespace) -> Output:
+    """List the thesis objects with their real dimensions."""
+    from pour_gym.objects import SPECS
+
+    doc = [
+        {
+            "name": s.name,
+            "title": s.title,
+            "height": s.height,
+            "rim_radius": s.rim_radius,
+            "volume": s.volume,
+            "handle": s.handle,
+        }
+        for s in SPECS.values()
+    ]
+    if args.png:
+        from pour_gym.objects import build_object
+        from pour_gym.report.pictures import render_gallery
+
+        models = [build_object(name) for name in SPECS]
+        render_gallery([(m.spec.title, m.mesh, m.labels) for m in models], args.png)
+
+    def text() -> str:
+        rows = [
+            [
+                d["name"],
+                f"{d['height'] * 100:.2f}",
+                f"{d['rim_radius'] * 100:.2f}",
+                f"{d['volume'] * 1e6:.0f}",
+                "yes" if d["handle"] else "no",
+            ]
+            for d in doc
+        ]
+        return text_table(rows, ["name", "height cm", "rim radius cm", "volume ml", "handle"])
+
+    return (doc, text)
+
+
+def _mesh_or_object(source: str, scale: float):
+    """A catalogue container's or a mesh file's mesh, and ground-truth labels (or None)."""
+    from pour_gym.assets import resolve_target
+    from pour_gym.mesh.fileio import validate_mesh
+
+    name, mesh, truth = resolve_target(source, scale)
+    validate_mesh(mesh, name=name)
+    return mesh, (truth.labels if truth is not None else None)
+
+
+def cmd_scan(args: argparse.Namespace) -> Output:
+    """Scan an object or a mesh file on the simulated turntable."""
+    from pour_gym.mesh.fileio import save_point_cloud
+    from pour_gym.mesh.scan import ScanConfig, turntable_scan
+
+    mesh, labels = _mesh_or_object(args.source, args.scale)
+    cfg = ScanConfig(views=args.views, noise=args.noise, seed=args.seed)
+    cloud = turntable_scan(mesh, labels, cfg)
+    out = save_point_cloud(cloud, args.out)
+    if args.png:
+        from pour_gym.report.pictures import render_points
+
+        render_points(cloud.points, args.png, title=f"scan of {args.source}")
+    doc = {"out": str(out), "n_points": len(cloud.points), "config": cfg.to_dict()}
+    return (doc, lambda: f"wrote {len(cloud.points)} points to {out}")
+
+
+def cmd_reconstruct(args: argparse.Namespace) -> Output:
+    """Reconstruct a mesh from a scan of a catalogue object or from a point cloud file."""
+    from pour_gym.mesh.fileio import load_point_cloud, save_mesh
+    from pour_gym.mesh.modelgen import generate_model, reconstruct_text
+    from pour_gym.mesh.reconstruct import ReconstructConfig
+    from pour_gym.objects import get_spec
+
+    if (args.object is None) == (args.points is None):
+        raise InputError("give either an OBJECT name or --points FILE, not both or neither")
+    if args.object is not None:
+        get_spec(args.object)
+    cfg = ReconstructConfig(sigma=args.sigma, voxel=args.voxel, wall=args.wall, inner=args.inner)
+    cloud = load_point_cloud(args.points, args.scale) if args.points else None
+    result = generate_model(args.object, cloud, cfg)
+    mesh_path = save_mesh(result.reconstruction.mesh, args.out)
+    report = dict(result.report, mesh=str(mesh_path))
+    report_path = mesh_path.with_suffix(".json")
+    report_path.write_text(json.dumps(report, indent=2))
+    report["report"] = str(report_path)
+    if args.png:
+        from pour_gym.report.pictures import render_mesh
+
+        render_mesh(result.reconstruction.mesh, args.png, title=mesh_path.stem)
+        report["png"] = str(args.png)
+    return (report, lambda: reconstruct_text(report))
+
+
+def cmd_measure(args: argparse.Namespace) -> Output:
+    """Height, rim radius and holding volume of an upright watertight mesh."""
+    from pour_gym.mesh.fileio import validate_mesh
+    from pour_gym.mesh.measure import container_dimensions
+
+    mesh, _ = _mesh_or_object(args.source, args.scale)
+    validate_mesh(mesh, name=args.source, watertight=True)
+    d = container_dimensions(mesh)
+    if d.closed is not None:
+        raise ClosedContainerError(args.source, d.closed, flag=False)
+    doc = {
+        "height": d.height,
+        "rim_radius": d.rim_radius,
+        "rim_center": list(d.rim_center),
+        "volume": d.volume,
+    }
+    return (
+        doc,
+        lambda: (
+            f"height {d.height * 100:.2f} cm, rim radius {d.rim_radius * 100:.2f} cm, "
+            f"holds {d.volume * 1e6:.1f} ml"
+        ),
+    )
+
+
+def cmd_report(args: argparse.Namespace) -> Output:
+    """Tables beside the thesis's: reconstruction (chapter 3) or warping (chapter 4)."""
+    from tqdm import tqdm
+
+    from pour_gym.mesh.modelgen import generate_model, reconstruction_table
+    from pour_gym.objects import OBJECT_NAMES
+
+    if args.what == "generalisation":
+        from pour_gym.agents.study import study_report
+
+        if not args.runs or not args.out:
+            raise InputError("report generalisation needs --runs DIR and --out DIR")
+        summary = study_report(args.runs, args.out)
+        return (summary, lambda: (Path(args.out) / "report.md").read_text())
+    if args.what == "warping":
+        from pour_gym.assets import label_container, warping_tables
+
+        warp = {}
+        for name in tqdm(OBJECT_NAMES, desc="label from red_cup", file=sys.stderr):
+            warp[name] = {m: label_container(name, "red_cup", m).meta for m in ("thesis", "best")}
+        return (warp, lambda: warping_tables(warp))
+    reports = {
+        name: generate_model(name).report
+        for name in tqdm(OBJECT_NAMES, desc="scan + reconstruct", file=sys.stderr)
+    }
+    return (reports, lambda: reconstruction_table(reports))
+
+
+def cmd_label(args: argparse.Namespace) -> Output:
+    """Label a container by warping a labelled source onto it; write the asset."""
+    from pour_gym.assets import label_container, write_asset
+
+    asset = label_container(
+        args.target, args.source, args.method, args.scale, allow_closed=args.allow_closed
+    )
+    out = write_asset(asset, args.out)
+    doc = dict(asset.meta, out=str(out))
+
+    def text() -> str:
+        lines = [f"labelled {asset.name} from {args.source} ({args.method}) into {out}"]
+        g = asset.geometry
+        lines.append(
+            f"  height {g.height * 100:.2f} cm, rim radius {g.rim_radius * 100:.2f} cm, "
+            f"cavity {g.cavity_volume * 1e6:.0f} ml (convex hull {g.container_volume * 1e6:.0f} ml)"
+        )
+        if "iou" in asset.meta:
+            iou = ", ".join(f"{k} {v:.3f}" for k, v in asset.meta["iou"].items() if v is not None)
+            lines.append(f"  IoU against ground truth: {iou}")
+        return "\n".join(lines)
+
+    return (doc, text)
+
+
+def cmd_build_assets(args: argparse.Namespace) -> Output:
+    """Label every catalogue container from the source and write the packaged assets."""
+    from tqdm import tqdm
+
+    from pour_gym.assets import CATALOGUE, asset_root, label_container, write_asset
+
+    root = Path(args.out) if args.out else asset_root()
+    done = {}
+    for name in tqdm(CATALOGUE, desc="build assets", file=sys.stderr):
+        asset = label_container(name, args.source, args.method)
+        done[name] = str(write_asset(asset, root / name))
+    return (done, lambda: f"wrote {len(done)} assets under {root}")
+
+
+def cmd_bench(args: argparse.Namespace) -> Output:
+    """Benchmarks."""
+    from pour_gym.apps.bench import (
+        bench_envs,
+        bench_fluid,
+        bench_label,
+        bench_ray,
+        bench_reconstruct,
+        envs_table,
+        fluid_table,
+        label_table,
+        ray_table,
+        reconstruct_table,
+    )
+
+    if args.what == "fluid":
+        sizes = [int(s) for s in (args.sizes or "300,1000,2000,4000,16000").split(",")]
+        bullet = [int(s) for s in args.bullet_sizes.split(",") if s]
+        result = bench_fluid(sizes, bullet, repeats=args.repeats)
+        doc = {k: result[k] for k in ("pbf", "bullet", "ratio_at_2000", "realtime")}
+        return (doc, lambda: fluid_table(result))
+    if args.what == "envs":
+        result = bench_envs(repeats=args.repeats)
+        return (result, lambda: envs_table(result))
+    if args.what == "ray":
+        result = bench_ray(repeats=args.repeats)
+        return (result, lambda: ray_table(result))
+    if args.what == "label":
+        sizes = [int(s) for s in (args.sizes or "5000,10000,20000,40000").split(",")]
+        rows = bench_label(sizes, repeats=args.repeats)
+        return ({"label": rows}, lambda: label_table(rows))
+    sizes = [int(s) for s in (args.sizes or "5000,10000,25000,50000,100000").split(",")]
+    rows = bench_reconstruct(sizes, repeats=args.repeats)
+    return ({"reconstruct": rows}, lambda: reconstruct_table(rows))
+
+
+def cmd_soak(args: argparse.Namespace) -> Output:
+    """Random actions over containers: exceptions, false endings, lost particles, walls."""
+    from pour_gym.apps.soak import soak, soak_table
+    from pour_gym.assets import expand_containers
+
+    objects = list(expand_containers(args.objects)) if args.objects else None
+    if args.user_meshes or objects is None:
+        from pour_gym.apps.soak import user_meshes
+        from pour_gym.io.cache import cache_dir
+
+        if objects is not None:
+            objects += user_meshes(cache_dir("soak"))
+    if args.episodes < 1 or args.steps < 1:
+        raise InputError("--episodes and --steps must be at least 1")
+    doc = soak(args.env, objects, args.episodes, args.steps, args.seed)
+    return (doc, lambda: soak_table(doc))
+
+
+def cmd_pour(args: argparse.Namespace) -> Output:
+    """A scripted pour between two containers, optionally as a video."""
+    from tqdm import tqdm
+
+    from pour_gym.report.video import FORMATS, write_video
+    from pour_gym.sim.scenes import PourScript, scripted_pour
+
+    if args.video and Path(args.video).suffix.lower() not in FORMATS:
+        raise InputError(f"--video must end in {' or '.join(FORMATS)}, not {args.video!r}")
+    if args.particles <= 0:
+        raise InputError(f"--particles must be positive, not {args.particles}")
+    bar = tqdm(total=100, desc="pour", file=sys.stderr, unit="%")
+
+    def progress(done: float) -> None:
+        bar.update(round(100 * done) - bar.n)
+
+    outcome = scripted_pour(
+        args.source,
+        args.target,
+        args.particles,
+        fluid=args.fluid,
+        script=PourScript(angle=args.angle),
+        fps=args.fps if args.video else 0,
+        progress=progress,
+    )
+    bar.close()
+    doc = {
+        "source": args.source,
+        "target": args.target,
+        "fluid": args.fluid,
+        "particles": args.particles,
+        "in_source": outcome.source,
+        "in_target": outcome.target,
+        "spilled": outcome.elsewhere,
+    }
+    if args.video:
+        doc["video"] = str(write_video(outcome.frames, args.video, fps=args.fps))
+    text = (
+        f"{args.particles} particles from {args.source} into {args.target} ({args.fluid}): "
+        f"{outcome.target} in the target, {outcome.source} left in the source, "
+        f"{outcome.elsewhere} spilled"
+    )
+    if args.video:
+        text += f"\nvideo: {doc['video']}"
+    return (doc, lambda: text)
+
+
+def cmd_experiment(args: argparse.Namespace) -> Output:
+    """The thesis's experiments 1 and 2 with ROC curves."""
+    from pour_gym.agents.experiments import run_experiment
+
+    objects = None
+    if args.objects:
+        from pour_gym.assets import expand_containers
+
+        objects = expand_containers(
+            args.objects.split(",") if "," in args.objects else args.objects
+        )
+    doc = run_experiment(
+        args.which, args.episodes, args.seed, Path(args.out), objects, address=args.address
+    )
+    table = doc.pop("table")
+    return (doc, lambda: f"{table}\nwrote {doc['files']['png']} and results_{args.which}.json")
+
+
+def cmd_evaluate(args: argparse.Namespace) -> Output:
+    """Evaluate a trained model, the scripted policy or a searched one on the containers."""
+    from pour_gym.agents.evaluate import evaluate_policy, evaluation_table
+    from pour_gym.agents.rollout import sb3_policy
+    from pour_gym.assets import expand_containers
+
+    env_kwargs: dict = {}
+    trained: list[str] = []
+    if args.policy == "scripted" or args.policy.endswith(".json"):
+        args.env = args.env or POUR_V0
+        from pour_gym.agents.scripted import ScriptedPourPolicy
+        from pour_gym.agents.search import load_search
+
+        if not _pours(args.env):
+            raise InputError(
+                f"the scripted policy pours from a source into a target, not in {args.env}"
+            )
+        if args.policy == "scripted":
+            policy = ScriptedPourPolicy()
+        else:  # the best of a policy search, trained on the containers it searched on
+            found = load_search(args.policy)
+            policy = ScriptedPourPolicy(**found["best"])
+            trained = found.get("sources", [])
+    else:
+        from pour_gym.agents.training import load_run
+
+        run = load_run(args.policy, args.algo)
+        args.env = args.env or run.config.get("env") or POUR_V0
+        if run.config.get("env") and run.config["env"] != args.env:
+            raise InputError(f"the model was trained on {run.config['env']}, not {args.env}")
+        policy = sb3_policy(run)
+        env_kwargs = run.env_kwargs()
+        trained = run.trained_on()
+    result = evaluate_policy(
+        policy,
+        args.env,
+        expand_containers(args.objects),
+        args.episodes,
+        seed=args.seed,
+        env_kwargs=env_kwargs,
+        trained_on=trained,
+        source_objects=expand_containers(args.source_objects) if args.source_objects else None,
+        target_objects=expand_containers(args.target_objects) if args.target_objects else None,
+    )
+    return (result, lambda: evaluation_table(result))
+
+
+def cmd_search(args: argparse.Namespace) -> Output:
+    """CMA-ES over the scripted policy's parameters."""
+    from pour_gym.agents.search import search
+
+    doc = search(
+        args.objects,
+        args.generations,
+        args.population,
+        args.episodes,
+        args.seed,
+        args.out,
+        objective=args.objective,
+        target_amount=args.target_amount,
+        target_objects=args.target_objects,
+        address=args.address,
+    )
+    what = "mean return" if doc["objective"] == "return" else "minus the mean error"
+    text = (
+        f"{what} {doc['start_score']:.3f} at the starting parameters, "
+        f"{doc['best_score']:.3f} at the best found: "
+        + ", ".join(f"{k}={v:.3g}" for k, v in doc["best"].items())
+    )
+    return (doc, lambda: text)
+
+
+def cmd_sweep(args: argparse.Namespace) -> Output:
+    """A grid of training runs (Ray Tune with --address)."""
+    from pour_gym.agents.sweep import load_spec, sweep, sweep_table
+
+    _, grid = load_spec(args.spec)
+    doc = sweep(args.spec, args.out, address=args.address)
+    return (doc, lambda: sweep_table(doc, list(grid)))
+
+
+def cmd_poc(args: argparse.Namespace) -> Output:
+    """The thesis's proof of concept, Table 6.1."""
+    from pour_gym.agents.poc import poc_table, run_poc
+    from pour_gym.fluid.pbf import PBFConfig
+
+    target = args.target
+    if args.target_ml is not None:
+        target = round(args.target_ml * 1e-6 / PBFConfig().particle_volume)
+    doc = run_poc(
+        target,
+        args.samples,
+        args.seed,
+        out=args.out,
+        policy=args.policy,
+        params=args.params,
+        episodes=args.episodes,
+    )
+    return (doc, lambda: poc_table(doc))
+
+
+def cmd_train(args: argparse.Namespace) -> Output:
+    """Train an SB3 agent and evaluate it (the same command as ``train.py``)."""
+    from pour_gym.agents.evaluate import evaluation_table
+    from pour_gym.agents.training import config_from_args, train
+
+    result = train(config_from_args(args))
+    return (result, lambda: evaluation_table(result))
+
+
+def cmd_demo(args: argparse.Namespace) -> Output:
+    """The main job: rebuild one thesis object from a simulated scan, then pour with it."""
+    from pour_gym.apps.demo import episode_gif, run_demo
+
+    summary = run_demo(Path(args.out), args.object)
+    pour = episode_gif(Path(args.out))
+    summary["pour"] = {"info": pour["info"], "video": pour["video"]}
+    text = summary.pop("text") + "\n" + pour["text"]
+    return (summary, lambda: text)
+
+
+def cmd_episode(args: argparse.Namespace) -> Output:
+    """An environment at work as a GIF: the scripted policy, or one-step episodes."""
+    from pour_gym.apps.demo import episode_gif
+
+    episode = episode_gif(
+        Path(args.out), args.env, args.source, args.target, args.seed, args.target_amount
+    )
+    return ({"info": episode["info"], "video": episode["video"]}, lambda: episode["text"])
+
+
+def _pours(env_id: str) -> bool:
+    """Whether an env id's task pours from a source into a target (InputError if unknown)."""
+    try:
+        return task_of(env_id).pours
+    except ValueError as exc:
+        raise InputError(str(exc)) from None

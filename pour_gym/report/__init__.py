@@ -1,0 +1,1 @@
+"""What people look at: markdown and text tables, pictures of meshes and clouds, videos."""
