@@ -23,7 +23,8 @@ from pour_gym.assets import (
     expand_containers,
     resolve_asset,
 )
-from pour_gym.fluid.pbf import PBFConfig
+from pour_gym.fluid import precompile
+from pour_gym.fluid.pbf import PBFConfig, default_threads
 from pour_gym.fluid.sdf import SignedDistanceField
 from pour_gym.sim import Camera, Container, World
 from pour_gym.sim.world import CUP_COLORS, FLUIDS, container_field
@@ -61,6 +62,7 @@ class PourGymEnv(gym.Env, EzPickle):
         render_mode: str | None,
         camera: Camera,
         reward_weights: dict[str, float],
+        steps_fluid: bool = True,
     ):
         if fluid not in FLUIDS:
             raise ValueError(f"fluid must be one of {FLUIDS}, not {fluid!r}")
@@ -85,6 +87,11 @@ class PourGymEnv(gym.Env, EzPickle):
         self._viewer = None
         self._closed = False
         self._started = False
+        if steps_fluid and fluid == "pbf":
+            # The fluid kernel's compile starts now, in helper processes, if it is not
+            # cached: it overlaps loading the containers and the first reset.
+            threads = default_threads() if num_threads is None else int(num_threads)
+            precompile.start(parallel=threads > 1)
 
     # ------------------------------------------------------------------ arguments
     def _add_reward_weights(self, weights: dict[str, float]) -> None:

@@ -123,6 +123,7 @@ class TiltPourEnv(PourGymEnv):
             render_mode,
             Camera(distance=0.4, pitch=-20.0),
             {"correct": correct_weight, "spill": spill_weight},
+            steps_fluid=label_mode == "simulate",
         )
         self._check_obs_mode(obs_mode)
         if label_mode not in LABEL_MODES:

@@ -29,6 +29,7 @@ near a free surface or a wall see fewer neighbours.
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 
 import numpy as np
@@ -36,6 +37,7 @@ import trimesh
 from scipy.spatial import ConvexHull, QhullError, cKDTree
 
 from pour_gym.errors import InputError
+from pour_gym.io.cache import cache_dir, mesh_key
 from pour_gym.mesh.measure import Cavity, cavity
 from pour_gym.parts import Part
 
@@ -79,13 +81,49 @@ class ContainerGeometry:
 CAVITY_VOXEL = 7.5e-4  # m: a tenth of a millilitre of resolution at cup scale
 
 
-def container_cavity(mesh: trimesh.Trimesh, voxel: float = CAVITY_VOXEL) -> Cavity:
+CAVITY_VERSION = 1  # bumped when the way cavities are computed changes (cached ones go stale)
+
+
+def container_cavity(
+    mesh: trimesh.Trimesh, voxel: float = CAVITY_VOXEL, cache: bool = True
+) -> Cavity:
     """The water an upright container mesh holds (watertight or not), as voxels.
 
     A single watertight body is voxelised by ray parity; any other mesh (holes, or bodies
     that overlap, where parity counts a point inside two of them as outside) as a shell.
+    The result is kept in the cache folder (:func:`pour_gym.io.cache.cache_dir`), keyed by
+    the mesh and the voxel: every environment's reset loads its containers, and computing
+    a cavity takes about a second.
+
+    Args:
+        mesh: the container, upright, in m.
+        voxel: voxel edge, in m.
+        cache: read and write the cache.
     """
-    return cavity(mesh, voxel, closed=bool(mesh.is_watertight) and mesh.body_count == 1)
+    closed = bool(mesh.is_watertight) and mesh.body_count == 1
+    path = None
+    if cache:
+        key = mesh_key(mesh, voxel, float(closed), CAVITY_VERSION)
+        path = cache_dir("cavity") / f"cavity_{key}.npz"
+        if path.is_file():
+            data = np.load(path)
+            shape = tuple(int(n) for n in data["shape"])
+            mask = np.unpackbits(data["bits"], count=int(np.prod(shape))).reshape(shape)
+            return Cavity(
+                mask.astype(bool), data["origin"], float(data["voxel"]), float(data["level"]),
+                bool(data["overflows"]),
+            )  # fmt: skip
+    water = cavity(mesh, voxel, closed=closed)
+    if path is not None:
+        # Written whole under another name first: a reader never sees half a file.
+        part = path.with_suffix(f".{os.getpid()}.npz")
+        np.savez_compressed(
+            part, bits=np.packbits(water.mask), shape=np.array(water.mask.shape),
+            origin=water.origin, voxel=water.voxel, level=water.level,
+            overflows=water.overflows,
+        )  # fmt: skip
+        os.replace(part, path)
+    return water
 
 
 def container_geometry(

@@ -13,11 +13,20 @@ import trimesh
 from scipy.spatial.transform import Rotation
 
 from pour_gym.errors import InputError
-from pour_gym.fluid import PBFConfig, PBFluid, build_sdf
+from pour_gym.fluid import PBFConfig, PBFluid, build_sdf, precompile
+from pour_gym.fluid.validation import (
+    BASE,
+    COLUMN_HEIGHT,
+    ONSET_HEIGHT,
+    R_IN,
+    WALL,
+    cylinder_field,
+    pour_onset,
+    settled_column,
+)
 from pour_gym.objects import cylinder_cup
 
-R_IN, WALL, BASE, HEIGHT = 0.036, 0.004, 0.006, 0.1
-TALL = 0.13  # m, a cup for the deep column
+HEIGHT = ONSET_HEIGHT
 
 
 @pytest.fixture(scope="module")
@@ -76,45 +85,21 @@ def test_sdf_of_an_open_mesh_gives_every_surface_a_wall():
 @pytest.fixture(scope="module")
 def tall_sdf(tmp_path_factory):
     """A cylinder deep enough to hold a column of 8.6 cm below its rim with room to spare."""
-    tall = cylinder_cup(R_IN, TALL, WALL, BASE)
-    return build_sdf(tall, spacing=0.001, cache_dir=tmp_path_factory.mktemp("sdf"))
+    return cylinder_field(COLUMN_HEIGHT, cache_dir=tmp_path_factory.mktemp("sdf"))
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("height", [0.025, 0.086])
 def test_settled_column_height_and_rest(tall_sdf, height):
     """A column settles to N v / (pi R^2) within 5 % (twice its particles' mean height),
-    at a shallow and at a full cup's depth, at rest density in the bulk."""
-    cfg = PBFConfig()
-    count = round(np.pi * R_IN**2 * height / cfg.particle_volume)
-    pts = column(cfg.spacing, TALL - BASE - 0.01)
-    pts = pts[np.lexsort((pts[:, 1], pts[:, 0], pts[:, 2]))][:count]
-    fluid = PBFluid(pts, cfg)
-    fluid.add_collider(tall_sdf)
-    energies, density_errors, bulk_sizes = [], [], []
-    for k in range(25):  # 2.5 s
-        fluid.step(0.1)
-        energies.append(0.5 * np.mean(np.sum(fluid.v**2, axis=1)))
-        if k >= 20:
-            # Density error in the bulk (particles a kernel radius from the free surface
-            # and walls), over the last 0.5 s: one snapshot jitters by +-0.003.
-            x = fluid.x
-            bulk = (
-                (np.hypot(x[:, 0], x[:, 1]) < R_IN - fluid.h - cfg.radius)
-                & (x[:, 2] > BASE + fluid.h + cfg.radius)
-                & (x[:, 2] < x[:, 2].max() - fluid.h)
-            )
-            bulk_sizes.append(bulk.sum())
-            density_errors.append(np.abs(fluid.relative_density()[bulk] - 1.0).mean())
-    x = fluid.x
-    assert len(x) == count and x[:, 2].max() < TALL  # nothing left the cup
-    measured = 2.0 * (x[:, 2].mean() - BASE)
-    assert measured == pytest.approx(height, rel=0.05)
+    at a shallow and at a full cup's depth, at rest density in the bulk (mean absolute
+    error under 3 % over the last 0.5 s), and comes to rest up to a jitter of a few cm/s."""
+    result = settled_column(height, field=tall_sdf)
+    assert result.lost == 0
+    assert abs(result.height_error) < 0.05
     if height > 0.05:  # a shallow column has no bulk to speak of
-        assert min(bulk_sizes) > 200
-        assert np.mean(density_errors) < 0.03
-    # The fluid comes to rest, up to a jitter of a few cm/s (rms speed over the last 0.5 s).
-    assert np.sqrt(2.0 * np.mean(energies[-5:])) < 0.12
+        assert result.density_error < 0.03
+    assert result.rms_speed < 0.12
 
 
 def test_rotating_cup_loses_nothing_and_nothing_enters_the_wall(cup_sdf):
@@ -155,12 +140,13 @@ def test_a_push_out_of_a_wall_gives_no_more_speed_than_the_particle_brought(cup_
 
 @pytest.mark.slow
 def test_a_kernel_loaded_from_the_cache_computes_what_it_computed_when_compiled(tmp_path):
-    """Numba's on-disk cache changes no number: a process that compiles the kernel and one
-    that loads it give the same particles, bit for bit (with LLVM free to reassociate
-    sums, they did not; see ``pour_gym.fluid.sdf.FASTMATH``)."""
+    """Numba's on-disk cache changes no number: a process that compiles the kernel itself,
+    one that loads it, and one whose helpers compiled it (in an empty cache) give the same
+    particles, bit for bit (with LLVM free to reassociate sums, they did not; see
+    ``pour_gym.fluid.sdf.FASTMATH``); the loading process compiles nothing."""
     script = (
         "import hashlib, numpy as np\n"
-        "from pour_gym.fluid import PBFConfig, PBFluid, build_sdf\n"
+        "from pour_gym.fluid import PBFConfig, PBFluid, build_sdf, pbf\n"
         "from pour_gym.objects import cylinder_cup\n"
         f"cup = cylinder_cup({R_IN}, {HEIGHT}, {WALL}, {BASE})\n"
         "g = np.arange(-0.03, 0.03, 0.005)\n"
@@ -170,19 +156,23 @@ def test_a_kernel_loaded_from_the_cache_computes_what_it_computed_when_compiled(
         "fluid.add_collider(build_sdf(cup, spacing=0.002))\n"
         "for _ in range(10):\n"
         "    fluid.step(0.1)\n"
-        "print(hashlib.sha256(fluid.x.tobytes()).hexdigest())\n"
+        "misses = sum(pbf._ADVANCE[False].stats.cache_misses.values())\n"
+        "print(hashlib.sha256(fluid.x.tobytes()).hexdigest(), misses)\n"
     )
-    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path)}
 
-    def run():
+    def run(cache, helpers):
+        env = {**os.environ, "NUMBA_CACHE_DIR": str(cache), precompile.ENV_SWITCH: helpers}
         done = subprocess.run(
             [sys.executable, "-c", script], capture_output=True, text=True, check=True, env=env
         )
-        return done.stdout.strip()
+        digest, misses = done.stdout.split()
+        return digest, int(misses)
 
-    compiled = run()
-    assert list(tmp_path.rglob("*.nbi")), "the first process wrote no cache"
-    assert run() == compiled
+    compiled, misses = run(tmp_path / "a", helpers="0")
+    assert misses == 1, "the first process did not compile the kernel itself"
+    assert list((tmp_path / "a").rglob("*.nbi")), "the first process wrote no cache"
+    assert run(tmp_path / "a", helpers="0") == (compiled, 0)
+    assert run(tmp_path / "b", helpers="1") == (compiled, 0)
 
 
 def test_same_start_same_particles_bit_for_bit(cup_sdf):
@@ -192,6 +182,8 @@ def test_same_start_same_particles_bit_for_bit(cup_sdf):
         cfg = PBFConfig()
         fluid = PBFluid(column(cfg.spacing, 0.03), cfg, num_threads=threads)
         fluid.add_collider(cup_sdf)
+        fluid.wait_for_kernel()  # the parallel build, not the serial one standing in for it
+        assert fluid.build == ("parallel" if threads > 1 else "serial")
         for _ in range(20):
             fluid.step(1 / 60)
         return fluid.x.copy()
@@ -213,30 +205,9 @@ def test_divergence_is_an_error(cup_sdf):
 @pytest.mark.parametrize("fill", [0.6, 0.7, 0.8])
 def test_pour_onset_angle(cup_sdf, fill):
     """A cylinder filled to h, tilted slowly, pours at tan(theta) = (H - h) / R (+-3 deg)."""
-    cfg = PBFConfig()
-    depth = HEIGHT - BASE
-    h = fill * depth
-    count = round(np.pi * R_IN**2 * h / cfg.particle_volume)
-    pts = column(cfg.spacing, depth)
-    pts = pts[np.lexsort((pts[:, 1], pts[:, 0], pts[:, 2]))][:count]
-    fluid = PBFluid(pts, cfg)
-    cup = fluid.add_collider(cup_sdf)
-    for _ in range(60):
-        fluid.step(1 / 60)
-    expected = np.degrees(np.arctan((depth - h) / R_IN))
-    angle, onset = 0.0, None
-    while angle < expected + 10.0:
-        # Quickly to 12 degrees before the expected onset, then 5 degrees per second.
-        angle = min(expected - 12.0, angle + 20.0 / 60) if angle < expected - 12.0 else angle
-        angle += 0.0 if angle < expected - 12.0 else 5.0 / 60
-        cup.rotation = Rotation.from_euler("y", angle, degrees=True).as_matrix()
-        fluid.step(1 / 60)
-        # Poured: particles' surfaces reach over the rim plane (in the cup's frame).
-        if np.count_nonzero((fluid.x @ cup.rotation)[:, 2] > HEIGHT - cfg.radius) >= 3:
-            onset = angle
-            break
-    assert onset is not None
-    assert abs(onset - expected) < 3.0
+    result = pour_onset(fill, field=cup_sdf)
+    assert np.isfinite(result.measured_deg)
+    assert abs(result.error_deg) < 3.0
 
 
 def test_a_scanned_mug_with_folds_inside_holds_its_water():

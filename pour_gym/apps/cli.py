@@ -107,7 +107,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", help="folder (default: the packaged assets folder)")
 
     p = add("bench", commands.cmd_bench, "benchmarks (medians of repeated runs)")
-    p.add_argument("what", choices=["reconstruct", "label", "fluid", "envs", "ray"])
+    p.add_argument(
+        "what",
+        choices=["reconstruct", "label", "fluid", "accuracy", "envs", "ray", "coldstart"],
+        help="accuracy is the fluid's against hydrostatics (not a timing); coldstart the "
+        "seconds a new process takes to its first step",
+    )
     p.add_argument("--sizes", help="comma-separated sizes (points, target vertices or particles)")
     p.add_argument(
         "--bullet-sizes",
@@ -115,6 +120,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="fluid: particle counts for the rigid-sphere backend ('' for none)",
     )
     p.add_argument("--repeats", type=int, default=3)
+    p.add_argument("--envs", help="coldstart: comma-separated env ids (default: every one)")
 
     p = add("soak", commands.cmd_soak, "random actions over containers: what must never happen")
     p.add_argument("--env", default=POUR_V0)

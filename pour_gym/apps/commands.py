@@ -207,24 +207,36 @@ def cmd_build_assets(args: argparse.Namespace) -> Output:
 def cmd_bench(args: argparse.Namespace) -> Output:
     """Benchmarks."""
     from pour_gym.apps.bench import (
+        accuracy_table,
+        bench_accuracy,
+        bench_coldstart,
         bench_envs,
         bench_fluid,
         bench_label,
         bench_ray,
         bench_reconstruct,
+        coldstart_table,
         envs_table,
         fluid_table,
         label_table,
         ray_table,
         reconstruct_table,
     )
+    from pour_gym.envs import ENV_IDS
 
     if args.what == "fluid":
         sizes = [int(s) for s in (args.sizes or "300,1000,2000,4000,16000").split(",")]
         bullet = [int(s) for s in args.bullet_sizes.split(",") if s]
         result = bench_fluid(sizes, bullet, repeats=args.repeats)
-        doc = {k: result[k] for k in ("pbf", "bullet", "ratio_at_2000", "realtime")}
+        doc = {k: v for k, v in result.items() if k != "rows"}
         return (doc, lambda: fluid_table(result))
+    if args.what == "accuracy":
+        result = bench_accuracy()
+        return (result, lambda: accuracy_table(result))
+    if args.what == "coldstart":
+        ids = args.envs.split(",") if args.envs else list(ENV_IDS)
+        result = bench_coldstart(ids)
+        return (result, lambda: coldstart_table(result))
     if args.what == "envs":
         result = bench_envs(repeats=args.repeats)
         return (result, lambda: envs_table(result))

@@ -23,6 +23,7 @@ a thesis cup holds 1-3 thousand of them.
 
 from __future__ import annotations
 
+import inspect
 import multiprocessing
 import os
 import types
@@ -31,6 +32,7 @@ from dataclasses import asdict, dataclass
 import numba as nb
 import numpy as np
 
+from pour_gym.fluid import precompile
 from pour_gym.fluid.sdf import FASTMATH, NO_REFCOUNT, SignedDistanceField, trilinear
 
 GRAVITY = np.array([0.0, 0.0, -9.81])
@@ -42,6 +44,30 @@ MAX_SUBSTEPS = 20_000
 # Cells of the neighbour grid, at most (2 MB of cell starts). Cells grow beyond the kernel
 # radius only when particles spread over more than about 0.26 m^3 at 5 mm particles.
 MAX_CELLS = 262_144
+
+
+def _noalias_option() -> dict:
+    """``{"noalias": True}`` where this numba can be told that array arguments never alias.
+
+    Numba gives its parallel loops' outlined bodies LLVM's ``noalias`` on array arguments
+    (when it proves them distinct) but has no public option for a plain function, whose
+    loops then reload every array's data on each store (1.6x slower on the density pass).
+    The compiler flag exists (``Flags.noalias``); this maps a target option onto it. The
+    kernel's arrays are distinct allocations.
+    """
+    try:
+        from numba.core.cpu import CPUTargetOptions
+        from numba.core.options import TargetOptions
+
+        if not hasattr(CPUTargetOptions, "noalias"):
+            CPUTargetOptions.noalias = TargetOptions.Mapping("noalias")
+        return {"noalias": True}
+    except (ImportError, AttributeError):  # another numba: the kernel is only slower
+        return {}
+
+
+# Array arguments never alias in the kernel's functions (distinct allocations).
+NOALIAS = _noalias_option()
 
 
 @dataclass(frozen=True)
@@ -127,21 +153,21 @@ def default_threads() -> int:
     return max(1, min(cores or 1, nb.config.NUMBA_NUM_THREADS))
 
 
-@nb.njit(cache=True, inline="always")
 def _poly6(r2, h):
-    if r2 >= h * h:
-        return 0.0
-    d = h * h - r2
+    """The poly6 kernel at squared distances ``r2`` (a number or an array), 1/m^3.
+
+    The kernel's constants are computed in Python from these (the compiled kernel inlines
+    the same formula): no compile is spent on them.
+    """
+    d = np.maximum(h * h - np.asarray(r2, dtype=np.float64), 0.0)
     return 315.0 / (64.0 * np.pi * h**9) * d * d * d
 
 
-@nb.njit(cache=True, inline="always")
 def _spiky_grad_scale(r, h):
     """Magnitude factor g with grad W = g * (x_i - x_j) (negative: points inward)."""
-    if r >= h or r < 1e-12:
-        return 0.0
-    d = h - r
-    return -45.0 / np.pi / (h * h * h * h * h * h) * d * d / r
+    r = np.asarray(r, dtype=np.float64)
+    d = np.where((r < h) & (r >= 1e-12), h - r, 0.0)
+    return -45.0 / np.pi / (h * h * h * h * h * h) * d * d / np.maximum(r, 1e-12)
 
 
 def wall_density_table(h: float, vol: float, samples: int = 64) -> np.ndarray:
@@ -256,7 +282,7 @@ def substep_poses(collider: PosedCollider, n_sub: int) -> tuple[np.ndarray, np.n
 
 
 # ---------------------------------------------------------------------- the kernel
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True, fastmath=FASTMATH, error_model="numpy", **NO_REFCOUNT)
 def _to_local(rot, trans, x, y, z):
     """World point -> a collider's frame (q = R^T (p - t))."""
     dx, dy, dz = x - trans[0], y - trans[1], z - trans[2]
@@ -267,24 +293,36 @@ def _to_local(rot, trans, x, y, z):
     )
 
 
-@nb.njit(cache=True, inline="always")
-def _sample(values, offs, dims, origins, spacings, k, x, y, z, gradient):
-    """Collider k's signed distance (and unit gradient) at a point of its frame."""
-    return trilinear(
-        values,
-        offs[k],
-        dims[k, 0],
-        dims[k, 1],
-        dims[k, 2],
-        origins[k, 0],
-        origins[k, 1],
-        origins[k, 2],
-        spacings[k],
-        x,
-        y,
-        z,
-        gradient,
-    )
+@nb.njit(cache=True, fastmath=FASTMATH, error_model="numpy", **NO_REFCOUNT)
+def _sample(fvals, fint, fgeo, k, x, y, z):
+    """Collider k's signed distance and unit gradient at a point of its frame.
+
+    The colliders' fields travel as one float32 run ``fvals``; ``fint[k]`` is (offset,
+    nx, ny, nz) and ``fgeo[k]`` (origin x, y, z, spacing, box top x, y, z, smallest
+    value on the box's faces).
+    """
+    return trilinear(fvals, fint[k, 0], fint[k, 1], fint[k, 2], fint[k, 3], fgeo[k, 0],
+                     fgeo[k, 1], fgeo[k, 2], fgeo[k, 3], x, y, z)  # fmt: skip
+
+
+@nb.njit(cache=True, fastmath=FASTMATH, error_model="numpy", **NO_REFCOUNT)
+def _floor_of(fgeo, k, x, y, z):
+    """A lower bound of collider k's distance at a point of its frame (no sample needed).
+
+    Outside the field's box the distance is a value on a face of the box (at least
+    ``fgeo[k, 7]``) plus the distance along each axis to the box (:func:`trilinear`);
+    inside it there is no bound (minus infinity). A collider whose bound is at least what
+    a test needs is left unsampled: most particles are far outside every container but
+    the one that holds them.
+    """
+    ex = max(fgeo[k, 0] - x, x - fgeo[k, 4], 0.0)
+    ey = max(fgeo[k, 1] - y, y - fgeo[k, 5], 0.0)
+    ez = max(fgeo[k, 2] - z, z - fgeo[k, 6], 0.0)
+    if ex + ey + ez <= 0.0:
+        return -np.inf
+    # Less a micrometre: trilinear clamps a hair inside the box (at n - 1.000001 nodes), so
+    # the value it interpolates takes a millionth of the next node in.
+    return fgeo[k, 7] + ex + ey + ez - 1e-6
 
 
 @nb.njit(cache=True, **NO_REFCOUNT)
@@ -295,7 +333,7 @@ def _sort_cells(p, h, max_cells, keys, order, start, sorted_p, grid):
     are one contiguous run of the sorted arrays. The cells are at least h wide, wider when
     the particles spread so far that ``max_cells`` cells of h would not cover them (the
     search stays exact, it checks more pairs). ``grid`` receives (lo x, y, z, cell, nx,
-    ny, nz) for :func:`_neighbours_of`.
+    ny, nz) for :func:`_later_of`.
     """
     n = p.shape[0]
     lx = ly = lz = np.inf
@@ -343,13 +381,16 @@ def _sort_cells(p, h, max_cells, keys, order, start, sorted_p, grid):
     grid[4], grid[5], grid[6] = nx, ny, nz
 
 
-@nb.njit(cache=True, fastmath=FASTMATH, **NO_REFCOUNT)
-def _neighbours_of(i, p, h2, grid, order, start, sorted_p, nbr, nbr_count):
-    """Particle i's neighbours within sqrt(h2), from the nine column runs around it."""
+@nb.njit(cache=True, fastmath=FASTMATH, error_model="numpy", **NO_REFCOUNT)
+def _later_of(si, h2, grid, order, start, sorted_p, later, n_later):
+    """The later neighbours (in sort order) of the particle in sorted slot si.
+
+    Those within sqrt(h2) among the nine column runs around it, in sorted order.
+    """
     lx, ly, lz, cell = grid[0], grid[1], grid[2], grid[3]
     nx, ny, nz = int(grid[4]), int(grid[5]), int(grid[6])
-    last = nbr.shape[1] - 1
-    px, py, pz = p[i, 0], p[i, 1], p[i, 2]
+    last = later.shape[1] - 1
+    px, py, pz = sorted_p[si, 0], sorted_p[si, 1], sorted_p[si, 2]
     cx = int((px - lx) / cell)
     cy = int((py - ly) / cell)
     cz = int((pz - lz) / cell)
@@ -359,21 +400,20 @@ def _neighbours_of(i, p, h2, grid, order, start, sorted_p, nbr, nbr_count):
     for ax in range(max(cx - 1, 0), min(cx + 2, nx)):
         for ay in range(max(cy - 1, 0), min(cy + 2, ny)):
             base = (ax * ny + ay) * nz
-            for s in range(start[base + z0], start[base + z1 + 1]):
+            for s in range(max(start[base + z0], si + 1), start[base + z1 + 1]):
                 rx = px - sorted_p[s, 0]
                 ry = py - sorted_p[s, 1]
                 rz = pz - sorted_p[s, 2]
                 # Branch-free: one candidate in five is a neighbour, which no branch
                 # predictor guesses; writing every candidate and advancing the count only
                 # for neighbours is 2.5x faster. The last slot takes the overflow.
-                j = order[s]
-                nbr[i, c] = j
-                c = min(c + ((rx * rx + ry * ry + rz * rz < h2) & (j != i)), last)
-    nbr_count[i] = c
+                later[si, c] = order[s]
+                c = min(c + (rx * rx + ry * ry + rz * rz < h2), last)
+    n_later[si] = c
 
 
-@nb.njit(cache=True, fastmath=FASTMATH, **NO_REFCOUNT)
-def _first_entry(values, offs, dims, origins, spacings, k, sx, sy, sz, qx, qy, qz, radius):
+@nb.njit(cache=True, fastmath=FASTMATH, error_model="numpy", **NO_REFCOUNT)
+def _first_entry(fvals, fint, fgeo, k, sx, sy, sz, qx, qy, qz, radius):
     """Where a straight path from s to q first comes within ``radius`` of collider k's wall.
 
     Returns the fraction of the path up to there (1.0 when the path never enters the
@@ -389,8 +429,7 @@ def _first_entry(values, offs, dims, origins, spacings, k, sx, sy, sz, qx, qy, q
     inside = False
     while t < length:
         f = t / length
-        px, py, pz = sx + dx * f, sy + dy * f, sz + dz * f
-        d = _sample(values, offs, dims, origins, spacings, k, px, py, pz, False)[0]
+        d = _sample(fvals, fint, fgeo, k, sx + dx * f, sy + dy * f, sz + dz * f)[0]
         if d < 0.0:
             inside = True
             break
@@ -400,8 +439,7 @@ def _first_entry(values, offs, dims, origins, spacings, k, sx, sy, sz, qx, qy, q
     lo, hi = 0.0, t / length
     for _ in range(20):
         mid = 0.5 * (lo + hi)
-        dm = _sample(values, offs, dims, origins, spacings, k,
-                       sx + mid * dx, sy + mid * dy, sz + mid * dz, False)[0]  # fmt: skip
+        dm = _sample(fvals, fint, fgeo, k, sx + mid * dx, sy + mid * dy, sz + mid * dz)[0]
         if dm > radius:
             lo = mid
         else:
@@ -409,9 +447,8 @@ def _first_entry(values, offs, dims, origins, spacings, k, sx, sy, sz, qx, qy, q
     return lo
 
 
-@nb.njit(cache=True, fastmath=FASTMATH, **NO_REFCOUNT)
-def _collide_one(p, prev, i, k, radius, values, offs, dims, origins, spacings, rot_s, tr_s,
-                 rot_e, tr_e):  # fmt: skip
+@nb.njit(cache=True, fastmath=FASTMATH, error_model="numpy", **NO_REFCOUNT)
+def _collide_one(p, prev, i, k, radius, fvals, fint, fgeo, rot_s, tr_s, rot_e, tr_e, near):
     """Push particle i out of collider k's material; 1 if it had tunnelled into a wall.
 
     The particle's start-of-substep position is taken into the collider's pose at the
@@ -422,11 +459,20 @@ def _collide_one(p, prev, i, k, radius, values, offs, dims, origins, spacings, r
     a radius off the wall (repeated: one push out of a corner can land near the other wall
     of the corner). A push that carries it out of the far side of a thin wall, or leaves
     it in the material of a crevice too narrow for it, is undone the same way.
+
+    ``near`` is a lower bound of the distance at the particle's end position (from the
+    predict pass's sample, less how far the particle has moved since).
     """
     qx, qy, qz = _to_local(rot_e[k], tr_e[k], p[i, 0], p[i, 1], p[i, 2])
-    d1 = _sample(values, offs, dims, origins, spacings, k, qx, qy, qz, False)[0]
     sx, sy, sz = _to_local(rot_s[k], tr_s[k], prev[i, 0], prev[i, 1], prev[i, 2])
     length = np.sqrt((qx - sx) ** 2 + (qy - sy) ** 2 + (qz - sz) ** 2)
+    # Far from the wall: nothing to do, and no sample needed (below, d1 would be at least
+    # this bound): the fluid inside a container, and everything outside the field's box.
+    bound = max(near, _floor_of(fgeo, k, qx, qy, qz))
+    if bound >= radius and length < bound:
+        return 0
+    # With the gradient: a particle near the wall is pushed along it, from this sample.
+    d1, gx, gy, gz = _sample(fvals, fint, fgeo, k, qx, qy, qz)
     # Every point of the path is within `length` of its end: a wall farther than that from
     # the end cannot have been crossed (the usual case, decided by one sample).
     if d1 >= radius and length < d1:
@@ -436,17 +482,16 @@ def _collide_one(p, prev, i, k, radius, values, offs, dims, origins, spacings, r
     # (Lipschitz again: d0 >= d1 - length, so an end farther out than the path is long
     # rules it out unsampled); a particle that started inside (no side to return to) is
     # only pushed.
-    d0 = (
-        _sample(values, offs, dims, origins, spacings, k, sx, sy, sz, False)[0]
-        if d1 <= length
-        else d1
-    )
+    d0 = _sample(fvals, fint, fgeo, k, sx, sy, sz)[0] if d1 <= length else d1
     if d0 > 0.0 and d0 + d1 <= length:
-        f = _first_entry(values, offs, dims, origins, spacings, k, sx, sy, sz, qx, qy, qz, radius)
+        f = _first_entry(fvals, fint, fgeo, k, sx, sy, sz, qx, qy, qz, radius)
         if f < 1.0:
             qx, qy, qz = sx + f * (qx - sx), sy + f * (qy - sy), sz + f * (qz - sz)
             tunnelled = 1
-    d, gx, gy, gz = _sample(values, offs, dims, origins, spacings, k, qx, qy, qz, True)
+    if tunnelled:
+        d, gx, gy, gz = _sample(fvals, fint, fgeo, k, qx, qy, qz)
+    else:
+        d = d1
     if d >= radius and tunnelled == 0:
         return 0
     for _ in range(4):
@@ -454,13 +499,13 @@ def _collide_one(p, prev, i, k, radius, values, offs, dims, origins, spacings, r
             break
         push = radius - d
         qx, qy, qz = qx + push * gx, qy + push * gy, qz + push * gz
-        d, gx, gy, gz = _sample(values, offs, dims, origins, spacings, k, qx, qy, qz, True)
+        d, gx, gy, gz = _sample(fvals, fint, fgeo, k, qx, qy, qz)
     span = np.sqrt((qx - sx) ** 2 + (qy - sy) ** 2 + (qz - sz) ** 2)
     if d < 0.0:
         # Pushed from wall to wall in a crevice narrower than a particle (a scan's folds):
         # still in the material, where the gradient may point out of the far side of a
         # thin wall. Stay where the substep started instead, if that was less deep.
-        d0 = _sample(values, offs, dims, origins, spacings, k, sx, sy, sz, False)[0]
+        d0 = _sample(fvals, fint, fgeo, k, sx, sy, sz)[0]
         if d0 > d:
             qx, qy, qz = sx, sy, sz
             tunnelled = 1
@@ -469,10 +514,9 @@ def _collide_one(p, prev, i, k, radius, values, offs, dims, origins, spacings, r
         # side: the push finishes a crossing. Where the path from the start to the pushed
         # position runs through material (only possible if it is at least d0 + d long),
         # the particle is put back where it entered, on the side it came from.
-        d0 = _sample(values, offs, dims, origins, spacings, k, sx, sy, sz, False)[0]
+        d0 = _sample(fvals, fint, fgeo, k, sx, sy, sz)[0]
         if d0 > 0.0 and d0 + d <= span:
-            f = _first_entry(values, offs, dims, origins, spacings, k, sx, sy, sz, qx, qy, qz,
-                             radius)  # fmt: skip
+            f = _first_entry(fvals, fint, fgeo, k, sx, sy, sz, qx, qy, qz, radius)
             if f < 1.0:
                 qx, qy, qz = sx + f * (qx - sx), sy + f * (qy - sy), sz + f * (qz - sz)
                 tunnelled = 1
@@ -483,23 +527,34 @@ def _collide_one(p, prev, i, k, radius, values, offs, dims, origins, spacings, r
     return tunnelled
 
 
-@nb.njit(cache=True, fastmath=FASTMATH, **NO_REFCOUNT)
-def _wall_term(i, p, wall, floor, has_floor, h, wall_table, values, offs, dims, origins,
-               spacings, rot_e, tr_e):  # fmt: skip
+@nb.njit(cache=True, fastmath=FASTMATH, error_model="numpy", **NO_REFCOUNT)
+def _wall_term(i, p, wall, floor, has_floor, h, wall_table, fvals, fint, fgeo, rot_e, tr_e,
+               near):  # fmt: skip
     """The density the nearest wall stands in for at particle i, and its gradient.
 
     The wall is a neighbour that does not move, so a particle pressed against it is pushed
-    off it by its own constraint (without the gradient a floor layer packs 20 % too dense).
-    ``wall[i]`` receives (density over rest density, gradient x, y, z).
+    off it by its own constraint (without the gradient a floor layer packs too dense).
+    ``wall[i]`` receives (density over rest density, gradient x, y, z), ``near[i, k]`` a
+    lower bound of collider k's distance (its sample, or the bound that spared it).
     """
     n_table = wall_table.shape[0]
     w = p[i, 2] - floor if has_floor else 1e9
     nearest = -1
-    for k in range(offs.shape[0]):
+    gx = gy = 0.0
+    gz = 1.0
+    for k in range(fint.shape[0]):
         lx, ly, lz = _to_local(rot_e[k], tr_e[k], p[i, 0], p[i, 1], p[i, 2])
-        dk = _sample(values, offs, dims, origins, spacings, k, lx, ly, lz, False)[0]
+        # A wall no nearer than the nearest so far, or than the kernel's reach, adds
+        # nothing: the bound decides that for most colliders without a sample.
+        bound = _floor_of(fgeo, k, lx, ly, lz)
+        near[i, k] = bound
+        if bound >= min(w, h):
+            continue
+        dk, ax, ay, az = _sample(fvals, fint, fgeo, k, lx, ly, lz)
+        near[i, k] = dk
         if dk < w:
             w, nearest = dk, k
+            gx, gy, gz = ax, ay, az
     wall[i, 0] = 0.0
     wall[i, 1] = 0.0
     wall[i, 2] = 0.0
@@ -515,8 +570,6 @@ def _wall_term(i, p, wall, floor, has_floor, h, wall_table, values, offs, dims, 
     slope = (wall_table[kk + 1] - wall_table[kk]) * (n_table - 1) / h
     nx, ny, nz = 0.0, 0.0, 1.0  # the floor's normal
     if nearest >= 0:
-        lx, ly, lz = _to_local(rot_e[nearest], tr_e[nearest], p[i, 0], p[i, 1], p[i, 2])
-        _, gx, gy, gz = _sample(values, offs, dims, origins, spacings, nearest, lx, ly, lz, True)
         r = rot_e[nearest]
         nx = r[0, 0] * gx + r[0, 1] * gy + r[0, 2] * gz
         ny = r[1, 0] * gx + r[1, 1] * gy + r[1, 2] * gz
@@ -527,14 +580,8 @@ def _wall_term(i, p, wall, floor, has_floor, h, wall_table, values, offs, dims, 
 
 
 # ---------------------------------------------------------------------- passes
-# Each pass is one loop over the particles (a parallel region in the parallel build; a
-# region costs a synchronisation of the threads, so loops over the same particles are
-# fused where the data allow). Passes are small functions rather than loops inlined into
-# one large one: LLVM optimises them better (the serial kernel ran 1.3x slower as a whole).
-
-
 def _pass_predict(x, v, p, prev, gz, hs, wall_on, wall, floor, has_floor, h, wall_table,
-                  values, offs, dims, origins, spacings, rot_e, tr_e):  # fmt: skip
+                  fvals, fint, fgeo, rot_e, tr_e, near):  # fmt: skip
     """Gravity, predicted positions (start positions kept), and each particle's wall term."""
     for i in nb.prange(x.shape[0]):
         v[i, 2] += gz * hs
@@ -542,51 +589,142 @@ def _pass_predict(x, v, p, prev, gz, hs, wall_on, wall, floor, has_floor, h, wal
             prev[i, a] = x[i, a]
             p[i, a] = x[i, a] + v[i, a] * hs
         if wall_on:
-            _wall_term(i, p, wall, floor, has_floor, h, wall_table, values, offs, dims,
-                       origins, spacings, rot_e, tr_e)  # fmt: skip
+            _wall_term(i, p, wall, floor, has_floor, h, wall_table, fvals, fint, fgeo, rot_e,
+                       tr_e, near)  # fmt: skip
+        else:
+            for k in range(near.shape[1]):
+                near[i, k] = -np.inf
 
 
-def _pass_neighbours(p, h2, grid, order, start, sorted_p, nbr, nbr_count):
-    """Every particle's neighbour list (after :func:`_sort_cells`)."""
-    for i in nb.prange(p.shape[0]):
-        _neighbours_of(i, p, h2, grid, order, start, sorted_p, nbr, nbr_count)
+def _pass_neighbours(p, h2, grid, order, start, sorted_p, nbr, nbr_count, later, n_later):
+    """Every particle's neighbour list (after :func:`_sort_cells`), each pair tested once.
+
+    A list holds the particle's neighbours in the order of the cell sort (the stencil's
+    cells in increasing cell number, each cell's particles in sorted order). Threads find
+    each particle's later neighbours in that order (:func:`_later_of`); one thread enters
+    each such pair in the later particle's list, visiting the particles in sorted order, so
+    that every list receives its earlier neighbours in order; then threads append the later
+    ones. These are the lists :func:`_pass_neighbour_pairs` makes on one thread, bit for
+    bit; they may differ only past the last slot, where both keep an arbitrary candidate (a
+    fluid squeezed to twice its density).
+    """
+    n = p.shape[0]
+    last = nbr.shape[1] - 1
+    for si in nb.prange(n):
+        _later_of(si, h2, grid, order, start, sorted_p, later, n_later)
+    for i in range(n):
+        nbr_count[i] = 0
+    for si in range(n):
+        i = order[si]
+        for q in range(n_later[si]):
+            j = later[si, q]
+            c = nbr_count[j]
+            nbr[j, c] = i
+            nbr_count[j] = min(c + 1, last)
+    for si in nb.prange(n):
+        i = order[si]
+        c = nbr_count[i]
+        for q in range(n_later[si]):
+            nbr[i, c] = later[si, q]
+            c = min(c + 1, last)
+        nbr_count[i] = c
+
+
+def _pass_neighbour_pairs(p, h2, grid, order, start, sorted_p, nbr, nbr_count, later, n_later):
+    """The same lists as :func:`_pass_neighbours`, in one sweep (one thread only).
+
+    The particles are visited in sorted order, each testing only the candidates after it
+    in that order and entering a neighbour in both lists at once (``later`` and
+    ``n_later`` are unused).
+    """
+    lx, ly, lz, cell = grid[0], grid[1], grid[2], grid[3]
+    nx, ny, nz = int(grid[4]), int(grid[5]), int(grid[6])
+    last = nbr.shape[1] - 1
+    n = p.shape[0]
+    for i in range(n):
+        nbr_count[i] = 0
+    for si in range(n):
+        i = order[si]
+        px, py, pz = sorted_p[si, 0], sorted_p[si, 1], sorted_p[si, 2]
+        cx = int((px - lx) / cell)
+        cy = int((py - ly) / cell)
+        cz = int((pz - lz) / cell)
+        z0 = max(cz - 1, 0)
+        z1 = min(cz + 1, nz - 1)
+        ci = nbr_count[i]
+        for ax in range(max(cx - 1, 0), min(cx + 2, nx)):
+            for ay in range(max(cy - 1, 0), min(cy + 2, ny)):
+                base = (ax * ny + ay) * nz
+                for s in range(max(start[base + z0], si + 1), start[base + z1 + 1]):
+                    rx = px - sorted_p[s, 0]
+                    ry = py - sorted_p[s, 1]
+                    rz = pz - sorted_p[s, 2]
+                    inside = rx * rx + ry * ry + rz * rz < h2
+                    # Branch-free, as in _later_of: both slots written, both counts
+                    # advanced only for a neighbour.
+                    j = order[s]
+                    cj = nbr_count[j]
+                    nbr[i, ci] = j
+                    nbr[j, cj] = i
+                    ci = min(ci + inside, last)
+                    nbr_count[j] = min(cj + inside, last)
+        nbr_count[i] = ci
 
 
 def _pass_lambda(src, nbr, nbr_count, pair_g, pair_s, lam, wall_on, wall, h, c_poly, c_spiky,
-                 w_dq, scorr, tension, eps):  # fmt: skip
-    """Each particle's multiplier from its density; keeps the pair terms for the correction."""
+                 inv_wdq, scorr, tension, eps, chunks):  # fmt: skip
+    """Each particle's multiplier from its density; keeps the pair terms for the correction.
+
+    The particles are split into ``chunks`` runs (spread over the threads in the parallel
+    build), each one call of :func:`_lambda_run`.
+    """
+    n = src.shape[0]
+    for t in nb.prange(chunks):
+        _lambda_run(t * n // chunks, (t + 1) * n // chunks, src, nbr, nbr_count, pair_g, pair_s,
+                    lam, wall_on, wall, h, c_poly, c_spiky, inv_wdq, scorr, tension,
+                    eps)  # fmt: skip
+
+
+@nb.njit(cache=True, fastmath=FASTMATH | {"reassoc"}, error_model="numpy", **NO_REFCOUNT, **NOALIAS)
+def _lambda_run(lo, hi, src, nbr, nbr_count, pair_g, pair_s, lam, wall_on, wall, h, c_poly,
+                c_spiky, inv_wdq, scorr, tension, eps):  # fmt: skip
+    """The multipliers of particles lo to hi (:func:`_pass_lambda`).
+
+    Compiled with reassociation, the one part of the kernel that is: LLVM vectorises the
+    neighbour loop's sums only if it may reorder them. The order it picks is fixed in this
+    compiled function, which both builds call, so they agree bit for bit
+    (``tests/test_fluid.py`` checks serial against parallel, compiled against cached).
+    """
     h2 = h * h
     w0 = c_poly * h2 * h2 * h2
-    for i in nb.prange(src.shape[0]):
+    for i in range(lo, hi):
+        m = nbr_count[i]
+        xi, yi, zi = src[i, 0], src[i, 1], src[i, 2]
         rho = w0
         gx = 0.0
         gy = 0.0
         gz = 0.0
         sum2 = 0.0
-        for q in range(nbr_count[i]):
+        for q in range(m):
             j = nbr[i, q]
-            rx = src[i, 0] - src[j, 0]
-            ry = src[i, 1] - src[j, 1]
-            rz = src[i, 2] - src[j, 2]
+            rx = xi - src[j, 0]
+            ry = yi - src[j, 1]
+            rz = zi - src[j, 2]
             r2 = rx * rx + ry * ry + rz * rz
-            if r2 >= h2:
-                pair_g[i, q] = 0.0
-                pair_s[i, q] = 0.0
-                continue
-            d2 = h2 - r2
+            inside = r2 < h2
+            d2 = h2 - r2 if inside else 0.0
             w = c_poly * d2 * d2 * d2
-            rho += w
             r = np.sqrt(r2)
-            g = c_spiky * (h - r) * (h - r) / max(r, 1e-12)
+            g = c_spiky * (h - r) * (h - r) / max(r, 1e-12) if inside else 0.0
+            ratio = w * inv_wdq
+            ratio2 = ratio * ratio
+            pair_g[i, q] = g
+            pair_s[i, q] = -scorr * ratio2 * ratio2
+            rho += w
             gx += g * rx
             gy += g * ry
             gz += g * rz
             sum2 += g * g * r2
-            # Kept for the correction pass: the positions do not move in between.
-            ratio = w / w_dq
-            ratio2 = ratio * ratio
-            pair_g[i, q] = g
-            pair_s[i, q] = -scorr * ratio2 * ratio2
         if wall_on:
             rho += wall[i, 0]
             gx += wall[i, 1]
@@ -598,9 +736,19 @@ def _pass_lambda(src, nbr, nbr_count, pair_g, pair_s, lam, wall_on, wall, h, c_p
         lam[i] = -c / (sum2 + gx * gx + gy * gy + gz * gz + eps)
 
 
-def _pass_correct(src, dst, nbr, nbr_count, pair_g, pair_s, lam, wall_on, wall, omega):
+def _pass_correct(src, dst, nbr, nbr_count, pair_g, pair_s, lam, wall_on, wall, omega,
+                  chunks):  # fmt: skip
     """Jacobi correction of every position: read from ``src``, written to ``dst``."""
-    for i in nb.prange(src.shape[0]):
+    n = src.shape[0]
+    for t in nb.prange(chunks):
+        _correct_run(t * n // chunks, (t + 1) * n // chunks, src, dst, nbr, nbr_count, pair_g,
+                     pair_s, lam, wall_on, wall, omega)  # fmt: skip
+
+
+@nb.njit(cache=True, fastmath=FASTMATH, error_model="numpy", **NO_REFCOUNT, **NOALIAS)
+def _correct_run(lo, hi, src, dst, nbr, nbr_count, pair_g, pair_s, lam, wall_on, wall, omega):
+    """Particles lo to hi of :func:`_pass_correct`."""
+    for i in range(lo, hi):
         dx = 0.0
         dy = 0.0
         dz = 0.0
@@ -620,11 +768,19 @@ def _pass_correct(src, dst, nbr, nbr_count, pair_g, pair_s, lam, wall_on, wall, 
         dst[i, 2] = src[i, 2] + omega * dz
 
 
-def _pass_collide(p, src, prev, x, vn, hs, limit, radius, floor, has_floor, corrected, values,
-                  offs, dims, origins, spacings, rot_s, tr_s, rot_e, tr_e, wall_speed):  # fmt: skip
-    """Positions from ``src`` into ``p``, limited, out of the walls; displacement velocities."""
+def _pass_collide(p, src, prev, x, v, vn, hs, limit, radius, floor, has_floor, corrected, near,
+                  fvals, fint, fgeo, rot_s, tr_s, rot_e, tr_e, wall_speed):  # fmt: skip
+    """Positions from ``src`` into ``p``, limited, out of the walls; displacement velocities.
+
+    ``near`` bounds each field's distance at the predicted positions, ``prev + v * hs``
+    (the predict pass's).
+    """
     wall_travel = wall_speed * hs
     for i in nb.prange(p.shape[0]):
+        # The predicted position, as the predict pass computed it (bit for bit).
+        px = prev[i, 0] + v[i, 0] * hs
+        py = prev[i, 1] + v[i, 1] * hs
+        pz = prev[i, 2] + v[i, 2] * hs
         for a in range(3):
             p[i, a] = src[i, a]
         # No particle moves farther than the CFL bound in one substep, pressure or not.
@@ -638,11 +794,32 @@ def _pass_collide(p, src, prev, x, vn, hs, limit, radius, floor, has_floor, corr
             p[i, 0] = prev[i, 0] + dx
             p[i, 1] = prev[i, 1] + dy
             p[i, 2] = prev[i, 2] + dz
-        for k in range(offs.shape[0]):
-            corrected[i] += _collide_one(
-                p, prev, i, k, radius, values, offs, dims, origins, spacings, rot_s, tr_s,
-                rot_e, tr_e,
-            )  # fmt: skip
+        for k in range(fint.shape[0]):
+            # The predict pass sampled each field at the predicted position, in the end
+            # pose. A trilinear field of distances changes by at most sqrt(3) times the
+            # distance moved (each axis's slope is at most 1), so the distance now is at
+            # least that sample less twice how far the particle moved since.
+            mx, my, mz = p[i, 0] - px, p[i, 1] - py, p[i, 2] - pz
+            bound = near[i, k] - 2.0 * np.sqrt(mx * mx + my * my + mz * mz) - 1e-6
+            if bound >= radius:
+                # The path in the collider's frame, as _collide_one takes it: a path
+                # shorter than the wall is far cannot have touched it (the usual case, a
+                # particle well inside a container, ends here without a call).
+                r, c = rot_e[k], tr_e[k]
+                ex, ey, ez = p[i, 0] - c[0], p[i, 1] - c[1], p[i, 2] - c[2]
+                qx = r[0, 0] * ex + r[1, 0] * ey + r[2, 0] * ez
+                qy = r[0, 1] * ex + r[1, 1] * ey + r[2, 1] * ez
+                qz = r[0, 2] * ex + r[1, 2] * ey + r[2, 2] * ez
+                r, c = rot_s[k], tr_s[k]
+                ex, ey, ez = prev[i, 0] - c[0], prev[i, 1] - c[1], prev[i, 2] - c[2]
+                sx = r[0, 0] * ex + r[1, 0] * ey + r[2, 0] * ez
+                sy = r[0, 1] * ex + r[1, 1] * ey + r[2, 1] * ez
+                sz = r[0, 2] * ex + r[1, 2] * ey + r[2, 2] * ez
+                length = np.sqrt((qx - sx) ** 2 + (qy - sy) ** 2 + (qz - sz) ** 2)
+                if length < bound:
+                    continue
+            corrected[i] += _collide_one(p, prev, i, k, radius, fvals, fint, fgeo, rot_s, tr_s,
+                                         rot_e, tr_e, bound)  # fmt: skip
         if has_floor and p[i, 2] < floor + radius:
             p[i, 2] = floor + radius
         # The push out of a wall moves the particle, but gives it no more speed than it
@@ -659,10 +836,20 @@ def _pass_collide(p, src, prev, x, vn, hs, limit, radius, floor, has_floor, corr
         vn[i, 2] = (prev[i, 2] + dz + s * ez - x[i, 2]) / hs
 
 
-def _pass_finish(x, v, vn, p, nbr, nbr_count, h, xsph, floor, has_floor, radius, decay):
-    """XSPH-smoothed velocities, positions taken, table friction."""
-    w_self = _poly6(0.0, h)
-    for i in nb.prange(x.shape[0]):
+def _pass_finish(x, v, vn, p, nbr, nbr_count, h, xsph, floor, has_floor, radius, decay, chunks):
+    """XSPH-smoothed velocities, positions taken, table friction (:func:`_finish_run`)."""
+    n = x.shape[0]
+    for t in nb.prange(chunks):
+        _finish_run(t * n // chunks, (t + 1) * n // chunks, x, v, vn, p, nbr, nbr_count, h,
+                    xsph, floor, has_floor, radius, decay)  # fmt: skip
+
+
+@nb.njit(cache=True, fastmath=FASTMATH, error_model="numpy", **NO_REFCOUNT, **NOALIAS)
+def _finish_run(lo, hi, x, v, vn, p, nbr, nbr_count, h, xsph, floor, has_floor, radius, decay):
+    """Particles lo to hi of :func:`_pass_finish`."""
+    h2 = h * h
+    inv_self = 1.0 / (h2 * h2 * h2)  # poly6 over its value at r = 0
+    for i in range(lo, hi):
         sx = 0.0
         sy = 0.0
         sz = 0.0
@@ -671,14 +858,16 @@ def _pass_finish(x, v, vn, p, nbr, nbr_count, h, xsph, floor, has_floor, radius,
             rx = p[i, 0] - p[j, 0]
             ry = p[i, 1] - p[j, 1]
             rz = p[i, 2] - p[j, 2]
-            w = _poly6(rx * rx + ry * ry + rz * rz, h) / w_self
+            r2 = rx * rx + ry * ry + rz * rz
+            d = h2 - r2 if r2 < h2 else 0.0
+            w = d * d * d * inv_self
             sx += (vn[j, 0] - vn[i, 0]) * w
             sy += (vn[j, 1] - vn[i, 1]) * w
             sz += (vn[j, 2] - vn[i, 2]) * w
         v[i, 0] = vn[i, 0] + xsph * sx
         v[i, 1] = vn[i, 1] + xsph * sy
         v[i, 2] = vn[i, 2] + xsph * sz
-        # x is not read in this loop (vn holds the displacement): it takes p here.
+        # x is not read in this pass (vn holds the displacement): it takes p here.
         for a in range(3):
             x[i, a] = p[i, a]
         # Water on a table comes to rest instead of gliding away forever.
@@ -689,26 +878,28 @@ def _pass_finish(x, v, vn, p, nbr, nbr_count, h, xsph, floor, has_floor, radius,
 
 def _advance(
     x, v, dt, h_max, limit, gz, floor, floor_decay, h, vol, eps, scorr, w_dq, iterations,
-    tension, omega, wall_on, wall_table, radius, xsph, values, offs, dims, origins, spacings,
+    tension, omega, wall_on, wall_table, radius, xsph, fvals, fint, fgeo,
     q0, q1, r0, r1, t0, t1, wall_speed, p, p2, prev, vn, lam, wall, nbr, nbr_count, pair_g,
-    pair_s, keys, order, start, sorted_p, grid, corrected, rot_s, tr_s, rot_e, tr_e,
+    pair_s, keys, order, start, sorted_p, grid, corrected, rot_s, tr_s, rot_e, tr_e, chunks,
+    near, later, n_later,
 ):  # fmt: skip
     """All substeps of one step of ``dt`` s; returns the number of substeps.
 
     Compiled twice (:data:`_ADVANCE`): calling the serial passes (no threading layer is
-    loaded) or their parallel builds. ``floor`` is -inf for none. Colliders: flat fields
-    (``values`` from ``offs``, grid ``dims``, ``origins``, ``spacings``) and poses from
-    (``q0``/``r0``, ``t0``) to (``q1``/``r1``, ``t1``) over the step, walls moving at most
-    ``wall_speed`` m/s. The rest is scratch space sized to the particles.
+    loaded) or their parallel builds. ``floor`` is -inf for none. Colliders: their fields
+    (``fvals``, ``fint``, ``fgeo``: see :func:`_sample`) and poses from (``q0``/``r0``,
+    ``t0``) to (``q1``/``r1``, ``t1``) over the step, walls moving at most ``wall_speed``
+    m/s. ``chunks`` is how many runs the neighbour passes split the particles into. The
+    rest is scratch space sized to the particles.
     """
     n = x.shape[0]
-    n_col = offs.shape[0]
+    n_col = fint.shape[0]
     h2 = h * h
     has_floor = floor > -1e300
     # Kernel constants, with the particle volume m / rho_0 folded in.
     c_poly = 315.0 / (64.0 * np.pi * h**9) * vol
     c_spiky = -45.0 / (np.pi * h**6) * vol
-    w_dq = w_dq * vol
+    inv_wdq = 1.0 / (w_dq * vol)
     g_abs = abs(gz)
     t = 0.0
     n_sub = 0
@@ -732,22 +923,22 @@ def _advance(
             _pose_at(q0[k], q1[k], r0[k], r1[k], t0[k], t1[k], f0, rot_s[k], tr_s[k])
             _pose_at(q0[k], q1[k], r0[k], r1[k], t0[k], t1[k], f1, rot_e[k], tr_e[k])
         _pass_predict(x, v, p, prev, gz, hs, wall_on, wall, floor, has_floor, h, wall_table,
-                      values, offs, dims, origins, spacings, rot_e, tr_e)  # fmt: skip
+                      fvals, fint, fgeo, rot_e, tr_e, near)  # fmt: skip
         _sort_cells(p, h, start.shape[0] - 1, keys, order, start, sorted_p, grid)
-        _pass_neighbours(p, h2, grid, order, start, sorted_p, nbr, nbr_count)
+        _pass_neighbours(p, h2, grid, order, start, sorted_p, nbr, nbr_count, later, n_later)
         # Jacobi iterations, reading positions from `src` and writing the corrected ones
         # to `dst` (then swapped), so no separate pass applies the corrections.
         src, dst = p, p2
         for _ in range(iterations):
             _pass_lambda(src, nbr, nbr_count, pair_g, pair_s, lam, wall_on, wall, h, c_poly,
-                         c_spiky, w_dq, scorr, tension, eps)  # fmt: skip
-            _pass_correct(src, dst, nbr, nbr_count, pair_g, pair_s, lam, wall_on, wall, omega)
+                         c_spiky, inv_wdq, scorr, tension, eps, chunks)  # fmt: skip
+            _pass_correct(src, dst, nbr, nbr_count, pair_g, pair_s, lam, wall_on, wall, omega,
+                          chunks)  # fmt: skip
             src, dst = dst, src
-        _pass_collide(p, src, prev, x, vn, hs, limit, radius, floor, has_floor, corrected,
-                      values, offs, dims, origins, spacings, rot_s, tr_s, rot_e, tr_e,
-                      wall_speed)  # fmt: skip
+        _pass_collide(p, src, prev, x, v, vn, hs, limit, radius, floor, has_floor, corrected, near,
+                      fvals, fint, fgeo, rot_s, tr_s, rot_e, tr_e, wall_speed)  # fmt: skip
         _pass_finish(x, v, vn, p, nbr, nbr_count, h, xsph, floor, has_floor, radius,
-                     np.exp(-floor_decay * hs))  # fmt: skip
+                     np.exp(-floor_decay * hs), chunks)  # fmt: skip
         t += hs
         n_sub += 1
     return n_sub
@@ -771,38 +962,23 @@ def _twin(func: types.FunctionType, suffix: str, namespace: dict | None = None):
     return twin
 
 
-def _noalias_option() -> dict:
-    """``{"noalias": True}`` where this numba can be told that array arguments never alias.
-
-    Numba gives its parallel loops' outlined bodies LLVM's ``noalias`` on array arguments
-    (when it proves them distinct) but has no public option for a plain function, whose
-    loops then reload every array's data on each store (1.6x slower on the density pass).
-    The compiler flag exists (``Flags.noalias``); this maps a target option onto it. The
-    kernel's arrays are distinct allocations.
-    """
-    try:
-        from numba.core.cpu import CPUTargetOptions
-        from numba.core.options import TargetOptions
-
-        if not hasattr(CPUTargetOptions, "noalias"):
-            CPUTargetOptions.noalias = TargetOptions.Mapping("noalias")
-        return {"noalias": True}
-    except (ImportError, AttributeError):  # another numba: the kernel is only slower
-        return {}
-
-
 def _builds(passes: tuple, driver: types.FunctionType) -> dict:
     """The driver compiled twice: calling serial passes, and calling parallel builds.
 
     The serial build runs without numba's runtime (:data:`NO_REFCOUNT`: none of its
     functions allocates); the parallel loops need it for their scheduling.
     """
-    fast = {"cache": True, "fastmath": FASTMATH, **_noalias_option()}
+    fast = {"cache": True, "fastmath": FASTMATH, "error_model": "numpy", **NOALIAS}
     serial = dict(driver.__globals__)
     parallel = dict(driver.__globals__)
+    # One thread tests each pair once; threads would race on the lists' counts.
+    serial["_pass_neighbours"] = nb.njit(**fast, **NO_REFCOUNT)(_pass_neighbour_pairs)
     for f in passes:
+        if f is _pass_neighbours:  # the serial build has its own (above)
+            parallel[f.__name__] = nb.njit(**fast, parallel=True)(_twin(f, "_parallel", parallel))
+            continue
         serial[f.__name__] = nb.njit(**fast, **NO_REFCOUNT)(f)
-        parallel[f.__name__] = nb.njit(**fast, parallel=True)(_twin(f, "_parallel"))
+        parallel[f.__name__] = nb.njit(**fast, parallel=True)(_twin(f, "_parallel", parallel))
     return {
         False: nb.njit(**fast, **NO_REFCOUNT)(_twin(driver, "_serial", serial)),
         True: nb.njit(**fast)(_twin(driver, "_parallel", parallel)),
@@ -811,6 +987,7 @@ def _builds(passes: tuple, driver: types.FunctionType) -> dict:
 
 # The kernel: serially (no threading layer is ever loaded, so a process that used it may
 # fork) and with parallel loops.
+_ADVANCE_PARAMETERS = tuple(inspect.signature(_advance).parameters)
 _ADVANCE = _builds(
     (_pass_predict, _pass_neighbours, _pass_lambda, _pass_correct, _pass_collide, _pass_finish),
     _advance,
@@ -823,7 +1000,7 @@ def _wall_distance(p, out, values, nx, ny, nz, origin, spacing, rot, trans):
     for i in range(p.shape[0]):
         qx, qy, qz = _to_local(rot, trans, p[i, 0], p[i, 1], p[i, 2])
         ox, oy, oz = origin[0], origin[1], origin[2]
-        d = trilinear(values, 0, nx, ny, nz, ox, oy, oz, spacing, qx, qy, qz, False)[0]
+        d = trilinear(values, 0, nx, ny, nz, ox, oy, oz, spacing, qx, qy, qz)[0]
         if d < out[i]:
             out[i] = d
 
@@ -862,6 +1039,8 @@ class PosedCollider:
     translation: np.ndarray
     prev_rotation: np.ndarray | None = None
     prev_translation: np.ndarray | None = None
+    # (the rotation it was computed for, its quaternion): spares the fluid recomputing it.
+    prev_quaternion: tuple | None = None
 
     @classmethod
     def placed(cls, rotation=None, translation=None, **handle):
@@ -884,10 +1063,11 @@ class Collider(PosedCollider):
 
 def _collider_travel(collider: PosedCollider, field: SignedDistanceField) -> float:
     """Farthest any point of the collider's field moves from its previous pose, m."""
-    corners = field.origin + field.spacing * (
-        np.array(np.meshgrid([0, 1], [0, 1], [0, 1], indexing="ij")).reshape(3, -1).T
-        * (np.array(field.values.shape) - 1)
-    )
+    if np.array_equal(collider.rotation, collider.prev_rotation) and np.array_equal(
+        collider.translation, collider.prev_translation
+    ):
+        return 0.0  # a container standing still (the target, most of the time)
+    corners = field.corners
     before = corners @ collider.prev_rotation.T + collider.prev_translation
     after = corners @ collider.rotation.T + collider.translation
     return float(np.linalg.norm(after - before, axis=1).max())
@@ -926,8 +1106,13 @@ class PBFluid:
         self.x = np.empty((0, 3))
         self.v = np.empty((0, 3))
         self._allocate(np.ascontiguousarray(positions, dtype=np.float64).reshape(-1, 3), None)
+        if self.count:
+            self._compile_soon()
         self.colliders: list[Collider] = []
         self._start = np.zeros(MAX_CELLS + 1, dtype=np.int64)
+        # Runs of particles of the neighbour passes: one on one thread, eight per thread on
+        # several (fewer are not spread over the threads).
+        self._chunks = 1 if self.num_threads == 1 else 8 * self.num_threads
         self._packed_key: tuple | None = None
         self._packed: tuple = ()
         self.h = cfg.kernel_ratio * cfg.spacing
@@ -937,16 +1122,16 @@ class PBFluid:
         # `packing`, for the disordered fluid a lattice settles into): with spacing^3
         # instead, the kernel sum would settle the fluid about 10 % denser than the
         # lattice, and a cup would hold 10 % more than its particle count.
-        self._vol = cfg.packing / sum(_poly6(float(x @ x), self.h) for x in lattice)
+        self._vol = cfg.packing / float(_poly6((lattice * lattice).sum(axis=1), self.h).sum())
         # Scales at rest, from a full lattice neighbourhood: epsilon and s_corr relative
         # to them keep the parameters meaningful in SI units.
         r = np.linalg.norm(lattice, axis=1)
         near = (r > 0) & (r < self.h)
-        gs = np.array([_spiky_grad_scale(x, self.h) for x in r[near]]) * self._vol
+        gs = _spiky_grad_scale(r[near], self.h) * self._vol
         rest_sum = float(np.sum(gs**2 * r[near] ** 2))
         self._eps = cfg.relaxation * rest_sum
         self._scorr = cfg.scorr_k / rest_sum
-        self._w_dq = _poly6((cfg.scorr_dq * self.h) ** 2, self.h)
+        self._w_dq = float(_poly6((cfg.scorr_dq * self.h) ** 2, self.h))
         self._wall_table = wall_density_table(self.h, self._vol)
         self.time = 0.0
         self.corrections = 0
@@ -962,10 +1147,14 @@ class PBFluid:
         self._sorted = np.empty_like(self.x)
         self._keys = np.empty(n, dtype=np.int64)
         self._order = np.empty(n, dtype=np.int64)
-        self._nbr = np.empty((n, self.max_neighbours), dtype=np.int64)
+        # Neighbour lists in 32 bits: they are the kernel's largest arrays.
+        self._nbr = np.empty((n, self.max_neighbours), dtype=np.int32)
         self._nbr_count = np.zeros(n, dtype=np.int64)
-        self._pair_g = np.empty((n, self.max_neighbours))
-        self._pair_s = np.empty((n, self.max_neighbours))
+        # Each particle's later neighbours in the sort (the threaded neighbour search).
+        self._later = np.empty((n, self.max_neighbours), dtype=np.int32)
+        self._n_later = np.zeros(n, dtype=np.int64)
+        self._pair_g = np.empty((n, self.max_neighbours), dtype=np.float32)
+        self._pair_s = np.empty((n, self.max_neighbours), dtype=np.float32)
         self._lam = np.zeros(n)
         self._p2 = np.empty_like(self.x)
         self._wall = np.zeros((n, 4))
@@ -989,6 +1178,7 @@ class PBFluid:
             raise ValueError("particle positions and velocities must be finite")
         n = self.count
         self._allocate(np.concatenate([self.x, p]), np.concatenate([self.v, v]))
+        self._compile_soon()
         return np.arange(n, n + len(p))
 
     def remove(self, mask: np.ndarray) -> None:
@@ -1005,7 +1195,7 @@ class PBFluid:
         tree = cKDTree(self.x)
         pairs = tree.sparse_distance_matrix(tree, self.h, output_type="coo_matrix")
         # The pairs include each particle with itself (distance 0), its own contribution.
-        w = np.array([_poly6(r * r, self.h) for r in pairs.data])
+        w = _poly6(pairs.data * pairs.data, self.h)
         return np.bincount(pairs.row, w, minlength=len(self.x)) * self._vol
 
     def add_collider(self, sdf: SignedDistanceField, rotation=None, translation=None) -> Collider:
@@ -1015,22 +1205,129 @@ class PBFluid:
         return c
 
     def _fields(self) -> tuple:
-        """The colliders' fields as flat arrays for the kernel (packed once per set)."""
+        """The colliders' fields for the kernel (packed once per set of colliders).
+
+        Returns:
+            ``(fvals, fint, fgeo)``: every field's values as one float32 run, (offset, nx,
+            ny, nz) per field, and (origin x, y, z, spacing, box top x, y, z, smallest value
+            on the box's faces) per field.
+        """
         key = tuple(id(c.sdf) for c in self.colliders)
         if key != self._packed_key:
             fields = [c.sdf for c in self.colliders]
             sizes = [f.values.size for f in fields]
+            offsets = np.concatenate([[0], np.cumsum(sizes)[:-1]]) if fields else []
             self._packed = (
-                np.concatenate([f.flat for f in fields]) if fields else np.zeros(1),
-                np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
-                if fields
-                else np.zeros(0, dtype=np.int64),
-                np.array([f.values.shape for f in fields], dtype=np.int64).reshape(-1, 3),
-                np.array([f.origin for f in fields], dtype=np.float64).reshape(-1, 3),
-                np.array([f.spacing for f in fields], dtype=np.float64),
-            )
+                np.concatenate([f.flat for f in fields]) if fields else np.zeros(1, np.float32),
+                np.array([[o, *f.values.shape] for o, f in zip(offsets, fields, strict=True)],
+                         dtype=np.int64).reshape(-1, 4),
+                np.array([[*f.origin, f.spacing, *f.upper, f.edge_min] for f in fields],
+                         dtype=np.float64).reshape(-1, 8),
+            )  # fmt: skip
             self._packed_key = key
         return self._packed
+
+    def _compile_soon(self) -> None:
+        """Start compiling the kernel in helpers (if not cached): this fluid will step."""
+        precompile.start(parallel=self.num_threads > 1)
+
+    @property
+    def build(self) -> str:
+        """The kernel build the next step runs: ``"serial"`` or ``"parallel"``.
+
+        A fluid on several threads runs the serial build (the same numbers) until a helper
+        process has compiled the parallel one (:mod:`pour_gym.fluid.precompile`).
+        """
+        if self.num_threads > 1 and precompile.ready("parallel", wait=False):
+            return "parallel"
+        return "serial"
+
+    def wait_for_kernel(self) -> None:
+        """Wait until the build this fluid wants is compiled (before timing it, say)."""
+        precompile.ready("parallel" if self.num_threads > 1 else "serial", wait=True)
+
+    def kernel_arguments(self, dt: float) -> dict:
+        """The compiled kernel's arguments for a step of ``dt`` s, by name (in order).
+
+        The colliders' previous poses are set where they have none yet.
+        """
+        cfg = self.config
+        for c in self.colliders:
+            if c.prev_rotation is None:
+                c.prev_rotation, c.prev_translation = c.rotation.copy(), c.translation.copy()
+        k = len(self.colliders)
+        fvals, fint, fgeo = self._fields()
+        r0 = np.array([c.prev_rotation for c in self.colliders], dtype=np.float64).reshape(k, 3, 3)
+        r1 = np.array([c.rotation for c in self.colliders], dtype=np.float64).reshape(k, 3, 3)
+        t0 = np.array([c.prev_translation for c in self.colliders], dtype=np.float64)
+        t1 = np.array([c.translation for c in self.colliders], dtype=np.float64)
+        q0 = np.empty((k, 4))
+        q1 = np.empty((k, 4))
+        for j, c in enumerate(self.colliders):
+            # The last step's end quaternion if it is still the start's (a teleport sets
+            # the previous pose anew), and a new one only for a turned container.
+            known = c.prev_quaternion
+            same = known is not None and np.array_equal(known[0], r0[j])
+            q0[j] = known[1] if same else quaternion(r0[j])
+            q1[j] = q0[j] if np.array_equal(r0[j], r1[j]) else quaternion(r1[j])
+        wall_speed = max((_collider_travel(c, c.sdf) for c in self.colliders), default=0.0) / dt
+        values = (
+            self.x,
+            self.v,
+            float(dt),
+            float(cfg.substep),
+            float(cfg.max_travel * cfg.radius),
+            float(GRAVITY[2]),
+            -np.inf if self.floor is None else float(self.floor),
+            float(cfg.floor_friction),
+            float(self.h),
+            float(self._vol),
+            float(self._eps),
+            float(self._scorr),
+            float(self._w_dq),
+            int(cfg.iterations),
+            float(cfg.tension),
+            float(cfg.over_relaxation),
+            bool(cfg.wall_density),
+            self._wall_table,
+            float(cfg.radius),
+            float(cfg.xsph),
+            fvals,
+            fint,
+            fgeo,
+            q0,
+            q1,
+            np.ascontiguousarray(r0),
+            np.ascontiguousarray(r1),
+            t0.reshape(k, 3),
+            t1.reshape(k, 3),
+            float(wall_speed),
+            self._p,
+            self._p2,
+            self._prev,
+            self._vn,
+            self._lam,
+            self._wall,
+            self._nbr,
+            self._nbr_count,
+            self._pair_g,
+            self._pair_s,
+            self._keys,
+            self._order,
+            self._start,
+            self._sorted,
+            np.empty(7),
+            self._corrected,
+            np.empty((k, 3, 3)),
+            np.empty((k, 3)),
+            np.empty((k, 3, 3)),
+            np.empty((k, 3)),
+            self._chunks,
+            np.empty((self.count, k)),
+            self._later,
+            self._n_later,
+        )
+        return dict(zip(_ADVANCE_PARAMETERS, values, strict=True))
 
     def step(self, dt: float) -> int:
         """Advance by ``dt`` seconds; returns the number of substeps taken.
@@ -1044,89 +1341,29 @@ class PBFluid:
         """
         if dt <= 0.0:
             raise ValueError(f"a step takes a positive time, not {dt} s")
-        cfg = self.config
         speed = float(np.sqrt((self.v**2).sum(axis=1).max())) if len(self.v) else 0.0
         if not np.isfinite(speed) or speed > MAX_SPEED:
             raise FloatingPointError(
                 f"the fluid diverged: a particle moves at {speed:.3g} m/s (limit {MAX_SPEED})"
             )
-        for c in self.colliders:
-            if c.prev_rotation is None:
-                c.prev_rotation, c.prev_translation = c.rotation.copy(), c.translation.copy()
-        k = len(self.colliders)
-        values, offs, dims, origins, spacings = self._fields()
-        r0 = np.array([c.prev_rotation for c in self.colliders], dtype=np.float64).reshape(k, 3, 3)
-        r1 = np.array([c.rotation for c in self.colliders], dtype=np.float64).reshape(k, 3, 3)
-        t0 = np.array([c.prev_translation for c in self.colliders], dtype=np.float64)
-        t1 = np.array([c.translation for c in self.colliders], dtype=np.float64)
-        q0 = np.array([quaternion(r) for r in r0]).reshape(k, 4)
-        q1 = np.array([quaternion(r) for r in r1]).reshape(k, 4)
-        wall_speed = max((_collider_travel(c, c.sdf) for c in self.colliders), default=0.0) / dt
+        args = self.kernel_arguments(dt)
         n_sub = 0
         self._corrected[:] = 0
         if self.count:
             # On one thread the serial build: it never loads a threading layer (a process
             # may fork safely after it), and a parallel build on one thread would wait on
-            # the threading layer at every loop (ten times slower with TBB).
-            parallel = self.num_threads > 1
+            # the threading layer at every loop (ten times slower with TBB). On several, the
+            # serial build serves (the same numbers) until a helper has compiled the other.
+            parallel = self.build == "parallel"
             if parallel:
                 nb.set_num_threads(min(self.num_threads, nb.config.NUMBA_NUM_THREADS))
-            n_sub = _ADVANCE[parallel](
-                self.x,
-                self.v,
-                float(dt),
-                float(cfg.substep),
-                float(cfg.max_travel * cfg.radius),
-                float(GRAVITY[2]),
-                -np.inf if self.floor is None else float(self.floor),
-                float(cfg.floor_friction),
-                float(self.h),
-                float(self._vol),
-                float(self._eps),
-                float(self._scorr),
-                float(self._w_dq),
-                int(cfg.iterations),
-                float(cfg.tension),
-                float(cfg.over_relaxation),
-                bool(cfg.wall_density),
-                self._wall_table,
-                float(cfg.radius),
-                float(cfg.xsph),
-                values,
-                offs,
-                dims,
-                origins,
-                spacings,
-                q0,
-                q1,
-                np.ascontiguousarray(r0),
-                np.ascontiguousarray(r1),
-                t0.reshape(k, 3),
-                t1.reshape(k, 3),
-                float(wall_speed),
-                self._p,
-                self._p2,
-                self._prev,
-                self._vn,
-                self._lam,
-                self._wall,
-                self._nbr,
-                self._nbr_count,
-                self._pair_g,
-                self._pair_s,
-                self._keys,
-                self._order,
-                self._start,
-                self._sorted,
-                np.empty(7),
-                self._corrected,
-                np.empty((k, 3, 3)),
-                np.empty((k, 3)),
-                np.empty((k, 3, 3)),
-                np.empty((k, 3)),
-            )
-        for c in self.colliders:
+            else:
+                precompile.ready("serial", wait=True)
+            n_sub = _ADVANCE[parallel](*args.values())
+        q1 = args["q1"]
+        for j, c in enumerate(self.colliders):
             c.prev_rotation, c.prev_translation = c.rotation.copy(), c.translation.copy()
+            c.prev_quaternion = (c.prev_rotation, q1[j].copy())
         if not np.isfinite(self.x).all():
             raise FloatingPointError("the fluid diverged: a particle position is NaN or infinite")
         self.corrections = int(self._corrected.sum())

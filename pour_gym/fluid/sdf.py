@@ -9,16 +9,20 @@ scene, exact point-to-triangle distances with the sign from ray parity) and cach
 
 from __future__ import annotations
 
-import hashlib
+import functools
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numba as nb
 import numpy as np
-import trimesh
 
 from pour_gym.errors import InputError
+from pour_gym.io.cache import mesh_key
 from pour_gym.io.open3d_loader import open3d
+
+if TYPE_CHECKING:  # trimesh takes 0.6 s to import; the fluid's processes need none
+    import trimesh
 
 # The fast-math flags of the fluid's compiled code: every one but "reassoc". With
 # reassociation LLVM may sum a particle's neighbours in another order wherever it inlines a
@@ -56,8 +60,10 @@ class SignedDistanceField:
     """A signed distance on a grid, in the mesh's frame.
 
     Attributes:
-        values: (nx, ny, nz) float64 signed distance in m at the grid nodes (negative in the
-            material of the mesh).
+        values: (nx, ny, nz) float32 signed distance in m at the grid nodes (negative in the
+            material of the mesh). Single precision: a field of a cup is several million
+            nodes that every fluid substep samples at random, so its size in the caches
+            is what a sample costs; float32 resolves a distance to a few nanometres.
         origin: (3,) position of node (0, 0, 0), in m.
         spacing: node spacing, in m.
     """
@@ -66,10 +72,38 @@ class SignedDistanceField:
     origin: np.ndarray
     spacing: float
 
+    def __post_init__(self):
+        object.__setattr__(self, "values", np.ascontiguousarray(self.values, dtype=np.float32))
+        object.__setattr__(self, "origin", np.asarray(self.origin, dtype=np.float64))
+
     @property
     def flat(self) -> np.ndarray:
-        """The values as one contiguous float64 run (x slowest, z fastest)."""
-        return np.ascontiguousarray(self.values, dtype=np.float64).reshape(-1)
+        """The values as one contiguous float32 run (x slowest, z fastest)."""
+        return self.values.reshape(-1)
+
+    @property
+    def edge_min(self) -> float:
+        """The smallest value on the grid's six faces, at least 0, m.
+
+        Outside the grid :func:`trilinear` adds the distance to the grid's box to a value
+        interpolated on a face, so a point outside is at least this plus that far from the
+        material: a bound the fluid tests before it samples a field at all.
+        """
+        v = self.values
+        faces = (v[0], v[-1], v[:, 0], v[:, -1], v[:, :, 0], v[:, :, -1])
+        return max(0.0, float(min(f.min() for f in faces)))
+
+    @functools.cached_property
+    def corners(self) -> np.ndarray:
+        """(8, 3) the corners of the grid's box in the mesh's frame, m."""
+        lo, hi = self.origin, self.upper
+        return np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1])
+                         for z in (lo[2], hi[2])])  # fmt: skip
+
+    @property
+    def upper(self) -> np.ndarray:
+        """(3,) position of the last node, m: the grid's box is ``origin`` to this."""
+        return self.origin + self.spacing * (np.array(self.values.shape) - 1)
 
     def sample(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Signed distance (N,) and its gradient (N, 3) at mesh-frame points."""
@@ -79,14 +113,6 @@ class SignedDistanceField:
         nx, ny, nz = self.values.shape
         _sample_many(self.flat, nx, ny, nz, self.origin, self.spacing, p, dist, grad)
         return dist, grad
-
-
-def _mesh_key(mesh: trimesh.Trimesh, *params: float) -> str:
-    h = hashlib.sha256()
-    h.update(np.ascontiguousarray(mesh.vertices, dtype=np.float64).tobytes())
-    h.update(np.ascontiguousarray(mesh.faces, dtype=np.int64).tobytes())
-    h.update(np.array(params, dtype=np.float64).tobytes())
-    return h.hexdigest()[:16]
 
 
 # How far from every surface a point must be to count as open space for the flood fill
@@ -136,7 +162,7 @@ def build_sdf(
     solid = bool(mesh.is_watertight) and mesh.body_count == 1
     path = None
     if cache_dir is not None:
-        key = _mesh_key(mesh, spacing, margin, 0.0 if solid else min_wall, SIGN_VERSION)
+        key = mesh_key(mesh, spacing, margin, 0.0 if solid else min_wall, SIGN_VERSION)
         path = Path(cache_dir) / f"sdf_{key}.npz"
         if path.is_file():
             data = np.load(path)
@@ -155,8 +181,7 @@ def build_sdf(
     query = o3d.core.Tensor(grid.astype(np.float32))
     if solid:
         # open3d's sign is negative inside the closed surface, which here is the material.
-        values = scene.compute_signed_distance(query, nsamples=3).numpy().astype(np.float64)
-        values = values.reshape(shape)
+        values = scene.compute_signed_distance(query, nsamples=3).numpy().reshape(shape)
     else:
         distance = scene.compute_distance(query).numpy().astype(np.float64).reshape(shape)
         fluid_side = _fluid_side(distance, spacing)
@@ -194,7 +219,7 @@ def _fluid_side(distance: np.ndarray, spacing: float) -> np.ndarray:
     return open_space | (reach + distance <= OPEN_SPACE + spacing)
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True, fastmath=FASTMATH)
 def _clamp_axis(x, origin, spacing, n):
     """Grid coordinate of x along one axis, clamped inside, and the distance clamped off."""
     u = (x - origin) / spacing
@@ -206,9 +231,9 @@ def _clamp_axis(x, origin, spacing, n):
     return u, 0.0
 
 
-@nb.njit(cache=True, fastmath=FASTMATH)
-def trilinear(values, offset, nx, ny, nz, ox, oy, oz, spacing, x, y, z, gradient=True):
-    """Trilinear signed distance (and its unit gradient) at a point of a field's frame.
+@nb.njit(cache=True, fastmath=FASTMATH, error_model="numpy", **NO_REFCOUNT)
+def trilinear(values, offset, nx, ny, nz, ox, oy, oz, spacing, x, y, z):
+    """Trilinear signed distance and its unit gradient at a point of a field's frame.
 
     The field is stored flat (``values[offset:]``, x slowest, z fastest), so that the
     fields of several containers can travel to compiled code as one array. Outside the
@@ -217,8 +242,9 @@ def trilinear(values, offset, nx, ny, nz, ox, oy, oz, spacing, x, y, z, gradient
 
     Returns:
         ``(d, gx, gy, gz)``: distance in m and the gradient's direction (the outward
-        normal of the nearest surface); the gradient is (0, 0, 0) without ``gradient``
-        (most particles are far from every wall, and only their distance is needed).
+        normal of the nearest surface). One compiled version serves callers that need
+        only the distance: a second, distance-only specialisation cost more compile time
+        at first use than the few multiplications it saves.
     """
     extra = 0.0
     u, e = _clamp_axis(x, ox, spacing, nx)
@@ -246,8 +272,6 @@ def trilinear(values, offset, nx, ny, nz, ox, oy, oz, spacing, x, y, z, gradient
     c0 = c00 * (1 - fy) + c10 * fy
     c1 = c01 * (1 - fy) + c11 * fy
     d = c0 * (1 - fz) + c1 * fz + extra
-    if not gradient:
-        return d, 0.0, 0.0, 0.0
     gx = ((c100 - c000) * (1 - fy) + (c110 - c010) * fy) * (1 - fz) + (
         (c101 - c001) * (1 - fy) + (c111 - c011) * fy
     ) * fz

@@ -6,8 +6,15 @@ Everything in it can be deleted; it is recomputed when needed.
 
 from __future__ import annotations
 
+import hashlib
 import os
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+if TYPE_CHECKING:  # trimesh takes 0.6 s to import; the fluid's processes need none
+    import trimesh
 
 
 def cache_dir(kind: str) -> Path:
@@ -23,3 +30,15 @@ def cache_dir(kind: str) -> Path:
     path = Path(root) / kind
     path.mkdir(parents=True, exist_ok=True)
     return path
+
+
+def mesh_key(mesh: trimesh.Trimesh, *params: float) -> str:
+    """A short hash of a mesh's vertices and faces and of the parameters a result used.
+
+    Cached files are named by it, so a changed mesh or parameter misses the cache.
+    """
+    h = hashlib.sha256()
+    h.update(np.ascontiguousarray(mesh.vertices, dtype=np.float64).tobytes())
+    h.update(np.ascontiguousarray(mesh.faces, dtype=np.int64).tobytes())
+    h.update(np.array(params, dtype=np.float64).tobytes())
+    return h.hexdigest()[:16]

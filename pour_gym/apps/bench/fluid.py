@@ -32,6 +32,8 @@ def bench_fluid(
 ) -> dict:
     """Particle-substeps per second of both fluid backends, side by side, in one run.
 
+    The position-based fluid runs on this process's threads (:func:`default_threads`) and,
+    when that is more than one, on one thread too: how a worker of a vector env runs it.
     Each case is a cylinder cup just wide enough to hold the particles as a 6 cm column,
     rocking +-15 degrees at 0.5 Hz (nothing spills). The fluid settles for 0.25 s, then
     ``repeats`` runs of ``seconds`` of simulated time are timed; the median is reported.
@@ -46,8 +48,9 @@ def bench_fluid(
         seconds: simulated time per run, s.
 
     Returns:
-        ``{"pbf": {"<n>": rate}, "bullet": {"<n>": rate}, "ratio_at_2000": x,
-        "realtime": {"pbf": {...}, "bullet": {...}}, "rows": [...]}``.
+        ``{"pbf": {"<n>": rate}, "pbf_one_thread": {"<n>": rate}, "bullet": {"<n>": rate},
+        "threads": t, "ratio_at_2000": x, "realtime": {...}, "rows": [...]}`` (rates in
+        particle-substeps per second; ``pbf_one_thread`` empty when ``t`` is 1).
     """
     import time
 
@@ -55,23 +58,26 @@ def bench_fluid(
     from pybullet_utils.bullet_client import BulletClient
     from scipy.spatial.transform import Rotation
 
-    from pour_gym.fluid import PBFConfig, PBFluid, build_sdf
+    from pour_gym.fluid import PBFConfig, PBFluid, build_sdf, default_threads
     from pour_gym.fluid.bullet import BulletFluid, convex_parts
     from pour_gym.io.cache import cache_dir
     from pour_gym.io.stdio import redirect_stdout_fd
     from pour_gym.sim.world import mesh_body
 
     cfg = PBFConfig()
-    cases = [("pbf", n) for n in sizes] + [("bullet", n) for n in bullet_sizes]
-    rates: dict = {"pbf": {}, "bullet": {}}
-    realtime: dict = {"pbf": {}, "bullet": {}}
+    threads = default_threads()
+    kinds = ["pbf", "pbf_one_thread"] if threads > 1 else ["pbf"]
+    cases = [(kind, n) for n in sizes for kind in kinds] + [("bullet", n) for n in bullet_sizes]
+    rates: dict = {"pbf": {}, "pbf_one_thread": {}, "bullet": {}}
+    realtime: dict = {"pbf": {}, "pbf_one_thread": {}, "bullet": {}}
     rows = []
     bar = tqdm(total=len(cases) * repeats, desc="bench fluid", file=sys.stderr)
     for kind, n in cases:
         mesh, pts = _tilting_cup(n, cfg.spacing)
         client = None
-        if kind == "pbf":
-            fluid = PBFluid(pts, cfg)
+        if kind != "bullet":
+            fluid = PBFluid(pts, cfg, num_threads=1 if kind == "pbf_one_thread" else threads)
+            fluid.wait_for_kernel()  # a build still compiling in a helper is not timed
             cup = fluid.add_collider(build_sdf(mesh, spacing=0.001))
         else:
             with redirect_stdout_fd():
@@ -105,6 +111,7 @@ def bench_fluid(
         rows.append(
             {
                 "backend": kind,
+                "threads": 1 if kind != "pbf" else threads,
                 "particles": n,
                 "rate": rates[kind][str(n)],
                 "realtime": realtime[kind][str(n)],
@@ -116,7 +123,9 @@ def bench_fluid(
         ratio = rates["pbf"]["2000"] / rates["bullet"]["2000"]
     return {
         "pbf": rates["pbf"],
+        "pbf_one_thread": rates["pbf_one_thread"],
         "bullet": rates["bullet"],
+        "threads": threads,
         "ratio_at_2000": ratio,
         "realtime": realtime,
         "rows": rows,
@@ -125,11 +134,15 @@ def bench_fluid(
 
 def fluid_table(result: dict) -> str:
     """Markdown table of :func:`bench_fluid`."""
-    header = ["backend", "particles", "particle-substeps/s (median)", "simulated s per wall s"]
+    header = [
+        "backend", "threads", "particles", "particle-substeps/s (median)", "simulated s per wall s"
+    ]  # fmt: skip
+    names = {"pbf": "pbf", "pbf_one_thread": "pbf", "bullet": "bullet spheres"}
     cells = [
-        [r["backend"], r["particles"], f"{r['rate']:.3g}", f"{r['realtime']:.2f}"]
+        [names[r["backend"]], r["threads"], r["particles"], f"{r['rate']:.3g}",
+         f"{r['realtime']:.2f}"]
         for r in result["rows"]
-    ]
+    ]  # fmt: skip
     lines = [markdown_table(header, cells)]
     if result.get("ratio_at_2000"):
         lines.append(f"\npbf / bullet at 2000 particles: {result['ratio_at_2000']:.1f}x")
