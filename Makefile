@@ -39,9 +39,14 @@ install-rllib: $(RLLIB_VENV)/.stamp-install
 demo: install
 	$(PY) -m pour_gym.apps.cli demo --out $(DEMO_OUT)
 
+# Tests run in $(TEST_WORKERS) processes (pytest-xdist), a test file per process at a time (its
+# module fixtures built once); the fluid kernel is compiled once for all of them.
+TEST_WORKERS ?= 2
+PYTEST := $(PY) -m pytest -q -n $(TEST_WORKERS) --dist loadfile
+
 # Everything, as CI runs it (after `make lint`): slow tests, RLlib, the docs site.
 test: install install-rllib
-	$(PY) -m pytest -q
+	$(PYTEST)
 
 lint: install
 	$(VENV)/bin/ruff check .
@@ -49,7 +54,7 @@ lint: install
 
 # The edit-test loop: ruff, then the tests not marked slow.
 check: lint
-	$(PY) -m pytest -q -m "not slow" --deselect tests/test_rllib.py
+	$(PYTEST) -m "not slow" --deselect tests/test_rllib.py
 
 # The documentation site (docs/, mkdocs.yml) into site/; a broken link or page fails.
 docs: install

@@ -190,7 +190,8 @@ class PandaHolder(Holder):
 
     ## Version History
     * v0 (this release). The arm became a holder that Pour-v0's task composes (it was a
-      subclass of it); nothing an episode does changed.
+      subclass of it); nothing an episode does changed. The faster fluid kernel (see
+      Pour-v0).
     """
 
     name = "panda"

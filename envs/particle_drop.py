@@ -80,7 +80,7 @@ class ParticleDropEnv(PourGymEnv):
       ``num_threads`` are arguments; a user's mug of two overlapping bodies no longer
       leaves particles inside its base (its collision field is signed by where fluid
       can be, not by ray parity); a push out of a wall adds no more speed than the
-      particle and the wall brought (see Pour-v0).
+      particle and the wall brought (see Pour-v0); the faster fluid kernel (see Pour-v0).
     * v0 (first release).
     """
 

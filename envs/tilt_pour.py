@@ -82,7 +82,7 @@ class TiltPourEnv(PourGymEnv):
       measured from the lowest rim vertex, the outer edge of a thick rim, and called pours
       4 degrees early); f4 from :mod:`pour_gym.features`; reward weights and
       ``num_threads`` are arguments; a push out of a wall adds no more speed than the
-      particle and the wall brought (see Pour-v0).
+      particle and the wall brought (see Pour-v0); the faster fluid kernel (see Pour-v0).
     * v0 (first release).
     """
 

@@ -7,9 +7,9 @@ import sys
 
 import pytest
 
-from pour_gym.fluid import precompile
+from pour_gym.fluid import compile_helper, precompile
 
-HELPER = "import sys; from pour_gym.fluid.precompile import main; sys.exit(main(sys.argv[1:]))"
+HELPER = "import sys; from pour_gym.fluid.compile_helper import main; sys.exit(main(sys.argv[1:]))"
 
 
 def _helper(cache, *builds) -> subprocess.Popen:
@@ -24,7 +24,7 @@ def _helper(cache, *builds) -> subprocess.Popen:
 
 
 def test_unknown_builds_are_refused(capsys):
-    assert precompile.main(["fastest"]) == 2
+    assert compile_helper.main(["fastest"]) == 2
     assert "unknown builds ['fastest']" in capsys.readouterr().err
 
 
@@ -71,8 +71,8 @@ def test_the_parts_compiled_apart_are_the_ones_the_driver_calls(tmp_path):
     script = (
         "import gc\n"
         "from numba.core.registry import CPUDispatcher\n"
-        "from pour_gym.fluid import precompile\n"
-        "precompile.compile_build('serial')\n"
+        "from pour_gym.fluid import compile_helper\n"
+        "compile_helper.compile_build('serial')\n"
         "for d in gc.get_objects():\n"
         "    if isinstance(d, CPUDispatcher) and d.signatures:\n"
         "        misses = sum(d.stats.cache_misses.values())\n"

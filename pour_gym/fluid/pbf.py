@@ -32,7 +32,8 @@ from dataclasses import asdict, dataclass
 import numba as nb
 import numpy as np
 
-from pour_gym.fluid import precompile
+# As a module, not through the package (whose __init__ imports this module).
+import pour_gym.fluid.precompile as precompile
 from pour_gym.fluid.sdf import FASTMATH, NO_REFCOUNT, SignedDistanceField, trilinear
 
 GRAVITY = np.array([0.0, 0.0, -9.81])
@@ -637,6 +638,8 @@ def _pass_neighbour_pairs(p, h2, grid, order, start, sorted_p, nbr, nbr_count, l
     in that order and entering a neighbour in both lists at once (``later`` and
     ``n_later`` are unused).
     """
+    # The stencil is written out as in _later_of: through a shared helper, LLVM compiled
+    # the cell index differently under fast-math and the particles changed in their bits.
     lx, ly, lz, cell = grid[0], grid[1], grid[2], grid[3]
     nx, ny, nz = int(grid[4]), int(grid[5]), int(grid[6])
     last = nbr.shape[1] - 1
@@ -992,6 +995,7 @@ _ADVANCE = _builds(
     (_pass_predict, _pass_neighbours, _pass_lambda, _pass_correct, _pass_collide, _pass_finish),
     _advance,
 )
+precompile.register({"serial": _ADVANCE[False], "parallel": _ADVANCE[True]})
 
 
 @nb.njit(cache=True)

@@ -5,7 +5,7 @@ from which every later process loads it in a fraction of a second. The compile i
 10-20 s for the one-thread build and as long again for the threaded one, and a new process
 would spend them inside its first ``step``. Instead, a :class:`~pour_gym.fluid.PBFluid` asks
 for its build when it is created (:func:`start`): if that build is not known to be cached, a
-helper process (:func:`main`) compiles it into the cache while
+helper process (:mod:`pour_gym.fluid.compile_helper`) compiles it into the cache while
 this process goes on building the world and resetting it, and the first step waits only for
 what is left (:func:`ready`). The builds compute the same numbers bit for bit, so a process
 that wants threads runs the one-thread build until the helper has the threaded one ready:
@@ -61,7 +61,7 @@ class _Helper:
             [
                 sys.executable,
                 "-c",
-                "import sys; from pour_gym.fluid.precompile import main; "
+                "import sys; from pour_gym.fluid.compile_helper import main; "
                 "sys.exit(main(sys.argv[1:]))",
                 *builds,
             ],
@@ -104,21 +104,31 @@ def enabled() -> bool:
     return (
         os.environ.get(ENV_SWITCH, "1").strip() != "0"
         and not nb.config.DISABLE_JIT
-        and _cache_dir() is not None
+        and cache_dir() is not None
     )
 
 
+_dispatchers: dict = {}  # build name -> numba dispatcher, set by pour_gym.fluid.pbf
+
+
+def register(dispatchers: dict) -> None:
+    """Tell this module the kernel's builds (``{"serial": ..., "parallel": ...}``).
+
+    :mod:`pour_gym.fluid.pbf` calls it when it has built them, so that this module, which
+    ``pbf`` imports, need not import ``pbf`` back.
+    """
+    _dispatchers.update(dispatchers)
+
+
 def _dispatcher(build: str):
-    from pour_gym.fluid.pbf import _ADVANCE
-
-    return _ADVANCE[build == "parallel"]
+    return _dispatchers[build]
 
 
-def _cache_dir() -> Path | None:
+def cache_dir() -> Path | None:
     """The directory numba caches the kernel in (``None`` if it cannot tell)."""
     try:
         return Path(_dispatcher("serial")._cache._cache_path)
-    except AttributeError:  # a numba without this attribute: no helpers
+    except (AttributeError, KeyError):  # another numba, or no kernel built: no helpers
         return None
 
 
@@ -141,18 +151,20 @@ def _key() -> str:
     return digest.hexdigest()[:16]
 
 
-def _marker(build: str) -> Path:
-    return _cache_dir() / f"pour_gym_kernel_{build}_{_key()}.ready"
+def marker(build: str) -> Path:
+    """The file that marks a build as compiled into the cache."""
+    return cache_dir() / f"pour_gym_kernel_{build}_{_key()}.ready"
 
 
-def _lock(build: str) -> Path:
-    return _cache_dir() / f"pour_gym_kernel_{build}.lock"
+def lock(build: str) -> Path:
+    """The file a helper locks while it compiles a build."""
+    return cache_dir() / f"pour_gym_kernel_{build}.lock"
 
 
 def _cached(build: str) -> bool:
     if build in _known or _dispatcher(build).signatures:
         return True
-    if _marker(build).is_file():
+    if marker(build).is_file():
         _known.add(build)
         return True
     return False
@@ -219,7 +231,7 @@ def wait_for_helpers(numba_cache: Path) -> None:
         numba_cache: a ``NUMBA_CACHE_DIR``; its kernel locks are taken and released.
     """
     for lock in sorted(Path(numba_cache).rglob("pour_gym_kernel_*.lock")):
-        with _locked(lock):
+        with locked(lock):
             pass
 
 
@@ -234,93 +246,8 @@ def _warn(message: str) -> None:
         )
 
 
-def _tiny_fluid(threads: int):
-    """A few particles over a slab (no mesh, no open3d): enough to compile with."""
-    import numpy as np
-
-    from pour_gym.fluid.pbf import PBFluid
-    from pour_gym.fluid.sdf import SignedDistanceField
-
-    g = np.arange(3) * 0.005
-    particles = np.stack(np.meshgrid(g, g, g + 0.02, indexing="ij"), -1).reshape(-1, 3)
-    nodes = np.arange(-0.02, 0.04, 0.005)
-    slab = np.broadcast_to(nodes[None, None, :] - 0.004, (12, 12, 12)).copy()
-    fluid = PBFluid(particles, floor=0.0, num_threads=threads)
-    fluid.add_collider(SignedDistanceField(slab, np.full(3, -0.02), 0.005))
-    return fluid
-
-
-def _call_parts(part: str) -> None:
-    """Compile one part of the one-thread build by calling its functions on a tiny fluid.
-
-    The kernel's functions are separate compilations that numba caches one by one, so two
-    processes can compile two parts at once; the driver, compiled last, loads them. The
-    calls pass the types the driver passes (``tests/test_fluid.py`` checks that compiling
-    the driver after both parts compiles none of them again).
-
-    Args:
-        part: ``"walls"`` (collisions with the containers' fields) or ``"constraint"`` (the
-            cell sort, neighbour search, density constraint, velocities and poses).
-    """
-    import numpy as np
-
-    from pour_gym.fluid import pbf
-
-    fluid = _tiny_fluid(1)
-    a = fluid.kernel_arguments(1 / 60)
-    serial = pbf._ADVANCE[False].py_func.__globals__  # the serial build's passes
-    x, k = a["x"], len(fluid.colliders)
-    p, prev, vn = a["p"], a["prev"], a["vn"]
-    p[:], prev[:], vn[:] = x, x, 0.0
-    eye = np.repeat(np.eye(3)[None], k, axis=0)
-    zero = np.zeros((k, 3))
-    near = np.zeros((len(x), k))
-    radius, h, hs = a["radius"], a["h"], 1 / 240
-    fields = (a["fvals"], a["fint"], a["fgeo"])
-    if part == "walls":
-        pbf._collide_one(p, prev, 0, 0, radius, *fields, eye, zero, eye, zero, 0.0)
-        pbf._wall_term(0, p, a["wall"], 0.0, True, h, a["wall_table"], *fields, eye, zero, near)
-        serial["_pass_collide"](
-            p, a["p2"], prev, x, a["v"], vn, hs, a["limit"], radius, 0.0, True, a["corrected"],
-            near, *fields, eye, zero, eye, zero, 0.0,
-        )  # fmt: skip
-        return
-    n = len(x)
-    lists = (a["nbr"], a["nbr_count"])
-    pbf._sort_cells(p, h, len(a["start"]) - 1, a["keys"], a["order"], a["start"], a["sorted_p"],
-                    a["grid"])  # fmt: skip
-    serial["_pass_neighbours"](p, h * h, a["grid"], a["order"], a["start"], a["sorted_p"], *lists,
-                               a["later"], a["n_later"])  # fmt: skip
-    pairs = (a["pair_g"], a["pair_s"], a["lam"], True, a["wall"])
-    pbf._lambda_run(0, n, p, *lists, *pairs, h, 1.0, 1.0, 1.0, 0.0, 0.0, 1.0)
-    pbf._correct_run(0, n, p, a["p2"], *lists, *pairs, 1.0)
-    pbf._finish_run(0, n, x, a["v"], vn, p, *lists, h, 0.0, 0.0, True, radius, 1.0)
-    pbf._pose_at(a["q0"][0], a["q1"][0], a["r0"][0], a["r1"][0], a["t0"][0], a["t1"][0], 0.5,
-                 eye[0], zero[0])  # fmt: skip
-
-
-def compile_build(build: str, walls_lock: Path | None = None) -> None:
-    """Compile one build into numba's cache (a step of a tiny fluid).
-
-    Args:
-        build: ``"walls"`` (a part of the one-thread build, see :func:`_call_parts`),
-            ``"serial"`` or ``"parallel"``.
-        walls_lock: for ``"serial"``, the lock of a helper compiling the walls part: its
-            other part is compiled first, then the driver once that lock is free.
-    """
-    if build == "walls":
-        _call_parts("walls")
-        return
-    if build == "serial":
-        _call_parts("constraint")
-        if walls_lock is not None:
-            with _locked(walls_lock):
-                pass
-    _tiny_fluid(2 if build == "parallel" else 1).step(1 / 60)
-
-
 @contextlib.contextmanager
-def _locked(path: Path):
+def locked(path: Path):
     """Hold an exclusive lock on a file (released when the process ends, however it ends)."""
     try:
         import fcntl
@@ -330,29 +257,3 @@ def _locked(path: Path):
         if fcntl is not None:
             fcntl.flock(handle, fcntl.LOCK_EX)
         yield
-
-
-def main(builds: list[str]) -> int:
-    """Compile the builds named, in order, each under its lock; print each when done."""
-    unknown = [b for b in builds if b not in (*BUILDS, "walls")]
-    if unknown:
-        sys.stderr.write(f"unknown builds {unknown}; choose from {BUILDS} and walls\n")
-        return 2
-    directory = _cache_dir()
-    if directory is None:
-        return 1
-    directory.mkdir(parents=True, exist_ok=True)
-    import time
-
-    for build in builds:
-        with _locked(_lock(build)):
-            if _marker(build).is_file():
-                sys.stderr.write(f"pour-gym precompile: {build} found in the cache\n")
-            else:
-                start = time.perf_counter()
-                compile_build(build, walls_lock=_lock("walls"))
-                _marker(build).touch()
-                seconds = time.perf_counter() - start
-                sys.stderr.write(f"pour-gym precompile: {build} compiled in {seconds:.1f} s\n")
-        print(build, flush=True)
-    return 0
