@@ -2,7 +2,7 @@
 
 Numba compiles the kernel on its first call and keeps it in its on-disk cache (``cache=True``),
 from which every later process loads it in a fraction of a second. The compile itself takes
-10-20 s for the one-thread build and as long again for the threaded one, and a new process
+seconds for the one-thread build and as long again for the threaded one, and a new process
 would spend them inside its first ``step``. Instead, a :class:`~pour_gym.fluid.PBFluid` asks
 for its build when it is created (:func:`start`): if that build is not known to be cached, a
 helper process (:mod:`pour_gym.fluid.compile_helper`) compiles it into the cache while
@@ -185,7 +185,7 @@ def start(parallel: bool) -> None:
     missing = tuple(b for b in missing if b not in covered)
     if missing:
         # Two helpers when the one-thread build is missing: one compiles its walls part while
-        # the other compiles the rest, then the driver (on two cores, 6 s instead of 9).
+        # the other compiles the rest, then the driver: two cores compile the two parts at once.
         groups = [("walls",), missing] if "serial" in missing else [missing]
         try:
             for group in groups:
