@@ -892,8 +892,8 @@ def _advance(
     loaded) or their parallel builds. ``floor`` is -inf for none. Colliders: their fields
     (``fvals``, ``fint``, ``fgeo``: see :func:`_sample`) and poses from (``q0``/``r0``,
     ``t0``) to (``q1``/``r1``, ``t1``) over the step, walls moving at most ``wall_speed``
-    m/s. ``chunks`` is how many runs the neighbour passes split the particles into. The
-    rest is scratch space sized to the particles.
+    m/s. ``chunks`` is how many runs the density, correction and velocity passes split the
+    particles into. The rest is scratch space sized to the particles.
     """
     n = x.shape[0]
     n_col = fint.shape[0]
@@ -1114,10 +1114,10 @@ class PBFluid:
             self._compile_soon()
         self.colliders: list[Collider] = []
         self._start = np.zeros(MAX_CELLS + 1, dtype=np.int64)
-        # Runs of particles of the neighbour passes: one on one thread, eight per thread on
-        # several (fewer are not spread over the threads).
+        # Runs of particles of the constraint and velocity passes: one on one thread, eight
+        # per thread on several (fewer are not spread over the threads).
         self._chunks = 1 if self.num_threads == 1 else 8 * self.num_threads
-        self._packed_key: tuple | None = None
+        self._packed_fields: list[SignedDistanceField] | None = None  # what _packed holds
         self._packed: tuple = ()
         self.h = cfg.kernel_ratio * cfg.spacing
         g = np.arange(-4, 5) * cfg.spacing
@@ -1216,9 +1216,15 @@ class PBFluid:
             ny, nz) per field, and (origin x, y, z, spacing, box top x, y, z, smallest value
             on the box's faces) per field.
         """
-        key = tuple(id(c.sdf) for c in self.colliders)
-        if key != self._packed_key:
-            fields = [c.sdf for c in self.colliders]
+        fields = [c.sdf for c in self.colliders]
+        # By identity, against the fields themselves (kept): an id alone could be reused by
+        # a new field once the one it named was freed.
+        packed = self._packed_fields
+        if (
+            packed is None
+            or len(packed) != len(fields)
+            or any(a is not b for a, b in zip(fields, packed, strict=True))
+        ):
             sizes = [f.values.size for f in fields]
             offsets = np.concatenate([[0], np.cumsum(sizes)[:-1]]) if fields else []
             self._packed = (
@@ -1228,7 +1234,7 @@ class PBFluid:
                 np.array([[*f.origin, f.spacing, *f.upper, f.edge_min] for f in fields],
                          dtype=np.float64).reshape(-1, 8),
             )  # fmt: skip
-            self._packed_key = key
+            self._packed_fields = fields
         return self._packed
 
     def _compile_soon(self) -> None:
