@@ -638,8 +638,9 @@ def _pass_neighbour_pairs(p, h2, grid, order, start, sorted_p, nbr, nbr_count, l
     in that order and entering a neighbour in both lists at once (``later`` and
     ``n_later`` are unused).
     """
-    # The stencil is written out as in _later_of: through a shared helper, LLVM compiled
-    # the cell index differently under fast-math and the particles changed in their bits.
+    # The stencil is written out as in _later_of: with a shared helper the particles came
+    # out different in their bits, perhaps only through how the kernel was compiled (see
+    # the known defect in docs/fluid.md); not yet tried again.
     lx, ly, lz, cell = grid[0], grid[1], grid[2], grid[3]
     nx, ny, nz = int(grid[4]), int(grid[5]), int(grid[6])
     last = nbr.shape[1] - 1
