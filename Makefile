@@ -20,7 +20,7 @@ $(VENV)/.stamp-base:
 	@touch $@
 
 $(VENV)/.stamp-install: $(VENV)/.stamp-base pyproject.toml
-	$(PY) -m pip install --quiet -e ".[dev,ray]"
+	$(PY) -m pip install --quiet -e ".[dev,ray,data]"
 	@touch $@
 
 install: $(VENV)/.stamp-install

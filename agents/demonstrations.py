@@ -95,6 +95,66 @@ def rate_as_angle(rate: float, env) -> float:
     return float(np.clip(action, -1.0, 1.0))
 
 
+class NoisyExpert:
+    """The scripted policy acting in a Pour env, with Gaussian noise on what it executes.
+
+    It reads the features whatever the env's ``obs_mode`` (``env.observe("features")``),
+    and gives its actions in the env's tilt form (:func:`rate_as_angle`). After each call
+    :attr:`clean` holds the expert's own action in the same form (DART's label).
+
+    Args:
+        env: the Pour env, unwrapped (its state is read at every call).
+        expert: arguments of :class:`~pour_gym.agents.scripted.ScriptedPourPolicy`.
+        sigma: (4,) standard deviations of the noise, action units.
+        rng: the noise's generator.
+
+    Raises:
+        InputError: arguments the scripted policy does not take.
+    """
+
+    def __init__(self, env, expert: dict | None, sigma: np.ndarray, rng: np.random.Generator):
+        try:
+            self.policy = ScriptedPourPolicy(**(expert or {}))
+        except TypeError as exc:
+            raise InputError(f"the demonstrating policy's arguments: {exc}") from None
+        self.env = env
+        self.sigma = sigma
+        self.rng = rng
+        self.clean = np.zeros(4)
+
+    def reset(self) -> None:
+        """Forget the episode."""
+        self.policy.reset()
+
+    def __call__(self, _obs: np.ndarray) -> np.ndarray:
+        """The noisy action (the observation passed in is ignored: the expert reads features)."""
+        base = self.env
+        clean = np.asarray(self.policy(base.observe("features")), dtype=np.float64).copy()
+        action = np.clip(clean + self.sigma * self.rng.standard_normal(4), -1.0, 1.0)
+        if base.tilt_control == "angle":
+            clean[3] = rate_as_angle(clean[3], base)
+            action[3] = rate_as_angle(action[3], base)
+        self.clean = clean
+        return action.astype(np.float32)
+
+
+def check_recording(env_id: str, episodes: int, noise: float | tuple[float, ...]) -> np.ndarray:
+    """Check what a recording of the expert is asked for; the noise per action dimension.
+
+    Raises:
+        InputError: fewer than one episode, a negative or infinite noise, or an env the
+            scripted policy cannot pour in.
+    """
+    if episodes < 1:
+        raise InputError(f"a recording needs at least one episode, not {episodes}")
+    sigma = np.broadcast_to(np.asarray(noise, dtype=np.float64), (4,))
+    if np.any(sigma < 0) or not np.all(np.isfinite(sigma)):
+        raise InputError(f"the expert's action noise must be finite and >= 0, not {noise}")
+    if not task_of(env_id).pours:
+        raise InputError(f"the scripted policy pours from a source into a target, not in {env_id}")
+    return sigma
+
+
 def collect_demonstrations(
     env_id: str,
     env_kwargs: dict,
@@ -133,49 +193,29 @@ def collect_demonstrations(
     Raises:
         InputError: an env the scripted policy cannot act in, or a negative noise.
     """
-    if episodes < 1:
-        raise InputError(f"demonstrations need at least one episode, not {episodes}")
-    sigma = np.broadcast_to(np.asarray(noise, dtype=np.float64), (4,))
-    if np.any(sigma < 0) or not np.all(np.isfinite(sigma)):
-        raise InputError(f"demonstration noise must be finite and >= 0, not {noise}")
-    if not task_of(env_id).pours:
-        raise InputError(f"the scripted policy pours from a source into a target, not in {env_id}")
+    sigma = check_recording(env_id, episodes, noise)
     env = make(env_id, **env_kwargs)
     if wrapper is not None:
         env = wrapper(env)
-    base = env.unwrapped
     try:
-        policy = ScriptedPourPolicy(**(expert or {}))
-    except TypeError as exc:
+        expert_policy = NoisyExpert(env.unwrapped, expert, sigma, np.random.default_rng(seed))
+    except InputError:
         env.close()
-        raise InputError(f"the demonstrating policy's arguments: {exc}") from None
-    rng = np.random.default_rng(seed)
+        raise
     rows: dict[str, list] = {k: [] for k in ("obs", "act", "expert", "rew", "next", "term")}
     successes = 0
     bar = tqdm(total=episodes, desc="demonstrations", file=sys.stderr, disable=not progress)
-    clean = [np.zeros(4)]  # the expert's action at the current step
-
-    def noisy_expert(_obs: np.ndarray) -> np.ndarray:
-        """The expert's action with noise; the expert reads the features, whatever the obs."""
-        clean[0] = np.asarray(policy(base.observe("features")), dtype=np.float64).copy()
-        action = np.clip(clean[0] + sigma * rng.standard_normal(4), -1.0, 1.0)
-        if base.tilt_control == "angle":
-            clean[0][3] = rate_as_angle(clean[0][3], base)
-            action[3] = rate_as_angle(action[3], base)
-        return action.astype(np.float32)
-
-    noisy_expert.reset = policy.reset  # type: ignore[attr-defined]
 
     def record(step: Step) -> None:
         rows["obs"].append(step.obs)
         rows["act"].append(step.action)
-        rows["expert"].append(clean[0])
+        rows["expert"].append(expert_policy.clean)
         rows["rew"].append(step.reward)
         rows["next"].append(step.next_obs)
         rows["term"].append(float(step.terminated))
 
     for k in range(episodes):
-        episode = rollout(env, noisy_expert, seed=seed + k, on_step=record)
+        episode = rollout(env, expert_policy, seed=seed + k, on_step=record)
         successes += bool(episode.info["is_success"])
         bar.update(1)
         bar.set_postfix(success=f"{successes}/{k + 1}")

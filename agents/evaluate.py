@@ -51,8 +51,10 @@ def evaluate_policy(
         ``{"env", "episodes", "rows": [{"object", "source", "target", "trained_on", and
         the task's metrics and diagnostics (:class:`pour_gym.envs.task.Task`: "success",
         "return", and for a pouring task "amount_error", "spilled", "corrections"), each
-        the mean over the row's episodes}...], "mean": {the metrics' means over the rows}}``;
-        ``target`` is None for the one-container tasks.
+        the mean over the row's episodes, and for a pouring task the share of its
+        episodes per outcome, ``outcome_<name>`` (:meth:`~pour_gym.envs.task.Task.outcome`:
+        why an episode failed)}...], "mean": {the means over the rows}}``; ``target`` is
+        None for the one-container tasks.
     """
     task = task_of(env_id)
     objects = list(objects)
@@ -75,10 +77,11 @@ def evaluate_policy(
         else:
             containers = {"objects": [source]}
         env = make(env_id, **containers, **(env_kwargs or {}))
-        metrics = []
+        metrics, last = [], []
         for ep in range(episodes):  # the bar counts episodes, as its total does
             episode = rollout(env, policy, seed=seed + k * episodes + ep)
             metrics.append({**episode.metrics(task), **task.diagnostics(episode.info)})
+            last.append(episode.info)
             bar.update()
         env.close()
         rows.append(
@@ -88,10 +91,12 @@ def evaluate_policy(
                 "target": target if task.pours else None,
                 "trained_on": source in trained and (target in trained or not task.pours),
                 **mean_metrics(metrics),
+                **task.outcome_shares(last),
             }
         )
     bar.close()
-    mean = mean_metrics({key: r[key] for key in task.metric_names} for r in rows)
+    keys = (*task.metric_names, *(f"outcome_{name}" for name in task.outcomes))
+    mean = mean_metrics({key: r[key] for key in keys} for r in rows)
     unseen = [r for r in rows if not r["trained_on"]]
     if unseen and len(unseen) < len(rows):
         mean["success_unseen"] = float(np.mean([r["success"] for r in unseen]))
@@ -103,20 +108,39 @@ def evaluation_table(result: dict) -> str:
     pours = task_of(result["env"]).pours
     header = ["object", "success", "mean return"]
     if pours:
-        header += ["mean amount error (particles)", "mean spilled"]
+        header += ["mean amount error (particles)", "mean spilled", "failures"]
     rows = []
     for r in result["rows"]:
         row = [r["object"] + (" *" if r["trained_on"] else ""), f"{r['success']:.2f}",
                f"{r['return']:.2f}"]  # fmt: skip
         if pours:
-            row += [f"{r['amount_error']:.1f}", f"{r['spilled']:.1f}"]
+            row += [f"{r['amount_error']:.1f}", f"{r['spilled']:.1f}", _failures(r)]
         rows.append(row)
     m = result["mean"]
     last = ["**mean**", f"**{m['success']:.2f}**", f"{m['return']:.2f}"]
     if pours:
-        last += [f"{m['amount_error']:.1f}", f"{m['spilled']:.2f}"]
+        last += [f"{m['amount_error']:.1f}", f"{m['spilled']:.2f}", _failures(m)]
     lines = [markdown_table(header, [*rows, last], align="l" + "r" * (len(header) - 1))]
     if "success_unseen" in m:
         lines.append(f"\nsuccess on containers never trained on: {m['success_unseen']:.2f}")
+    if pours:
+        lines.append(
+            "\nfailures: the share of episodes that failed, by why (envs.task.POUR_OUTCOMES)"
+        )
     lines.append("\n\\* trained on this object")
     return "\n".join(lines)
+
+
+def _failures(row: dict) -> str:
+    """A row's failed episodes by outcome, e.g. ``spilled 0.2, overshot 0.1``.
+
+    Results from before outcomes were recorded give ``-``.
+    """
+    shares = [
+        (key.removeprefix("outcome_"), value)
+        for key, value in row.items()
+        if key.startswith("outcome_") and key != "outcome_success" and value > 0
+    ]
+    if not any(key.startswith("outcome_") for key in row):
+        return "-"
+    return ", ".join(f"{name} {value:.2f}" for name, value in shares) or "none"

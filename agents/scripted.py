@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pour_gym.envs.pour import FEATURE_NAMES
+from pour_gym.envs.pour import FEATURE_NAMES, TILT_CONTROLS, UPRIGHT_BAND
 
 _I = {name: k for k, name in enumerate(FEATURE_NAMES)}
 
@@ -70,6 +70,13 @@ class ScriptedPourPolicy:
             gentle start, so that a full source does not slosh over; 1 or more: none).
             The ramp lives in the policy's memory, not in the observation: a learner
             imitating it cannot tell the first step from the tenth.
+        tilt_control: the env's tilt action, ``"rate"`` (Pour-v0) or ``"angle"``
+            (Pour-v1): the policy decides a rate and, for ``"angle"``, gives the tilt one
+            step at that rate reaches (from the observed tilt), which the env moves to
+            at the same rate. :func:`tilt_settings` reads it and the next two from an env id.
+        max_tilt_rate: the env's ``max_tilt_rate``, deg/s (``"angle"`` only).
+        max_tilt: the env's ``max_tilt``, deg (``"angle"`` only).
+        dt: the env's step, s (``"angle"`` only).
     """
 
     lip_offset: float = 0.6
@@ -84,8 +91,16 @@ class ScriptedPourPolicy:
     amount: int | None = None
     min_particles: float = 1.5
     start_ramp: float = 0.1
+    tilt_control: str = "rate"
+    max_tilt_rate: float = 60.0
+    max_tilt: float = 135.0
+    dt: float = 0.1
 
     def __post_init__(self) -> None:
+        if self.tilt_control not in TILT_CONTROLS:
+            raise ValueError(
+                f"tilt_control must be one of {TILT_CONTROLS}, not {self.tilt_control!r}"
+            )
         self.reset()
 
     def reset(self) -> None:
@@ -96,7 +111,16 @@ class ScriptedPourPolicy:
 
     def __call__(self, obs: np.ndarray) -> np.ndarray:
         """The action for one features observation."""
-        o = np.asarray(obs, dtype=np.float64)
+        action = self._rate_action(np.asarray(obs, dtype=np.float64))
+        if self.tilt_control == "angle":
+            goal = 90.0 * obs[_I["tilt"]] + action[3] * self.max_tilt_rate * self.dt
+            action[3] = np.clip(
+                2.0 * (goal + UPRIGHT_BAND) / (self.max_tilt + UPRIGHT_BAND) - 1.0, -1.0, 1.0
+            )
+        return action
+
+    def _rate_action(self, o: np.ndarray) -> np.ndarray:
+        """The action with the tilt as a rate (Pour-v0's form)."""
         if self.phase == "move":
             # A gentle start, so that a full source does not slosh over.
             self._speed = min(self._speed + self.start_ramp, self.max_speed)
@@ -125,3 +149,23 @@ class ScriptedPourPolicy:
         if self.phase == "back":
             action[3] = -1.0
         return action
+
+
+def tilt_settings(env_id: str, env_kwargs: dict | None = None) -> dict:
+    """The tilt arguments of :class:`ScriptedPourPolicy` for an env id and its arguments.
+
+    The env's ``tilt_control``, ``max_tilt_rate`` and ``max_tilt``: its class's defaults,
+    then the id's registered ones (Pour-v1's angle control), then ``env_kwargs``.
+    """
+    import inspect
+
+    import gymnasium as gym
+
+    from pour_gym.envs import register_envs
+    from pour_gym.envs.pour import PourEnv
+
+    register_envs()
+    keys = ("tilt_control", "max_tilt_rate", "max_tilt")
+    defaults = {k: inspect.signature(PourEnv).parameters[k].default for k in keys}
+    given = {**gym.spec(env_id).kwargs, **(env_kwargs or {})}
+    return {**defaults, **{k: given[k] for k in keys if k in given}}

@@ -100,7 +100,9 @@ class PourEnv(PourGymEnv):
     heights from their labels, and the fluid left in the source over the target amount.
     ``obs_mode="state"``: ``Box(-10, 10, (19,), float32)``, see ``STATE_NAMES``: raw
     positions (m), tilt (rad), the target's yaw, bounding-box sizes (in 10 cm), particle
-    counts over the initial fill; no warped features.
+    counts over the initial fill; no warped features. ``hide`` names entries that read 0 in
+    either mode (the space keeps its shape): a learner kept blind to, say, the containers'
+    sizes, which are constants when it trains on one cup.
 
     ## Rewards
     Per step, with T the target amount in particles, each term times its weight:
@@ -159,6 +161,7 @@ class PourEnv(PourGymEnv):
     | ``upright_weight`` | float | 0.0 | weight of ``upright`` |
     | ``tilt_weight`` | float | 0.0 | weight of ``tilt`` |
     | ``control_weight`` | float | 0.0 | weight of ``control`` |
+    | ``hide`` | list of str | () | observation entries (by name) that read 0 |
     | ``render_mode`` | str or None | None | ``"rgb_array"`` or ``"human"`` |
     | ``holder`` | str | ``"free"`` | what holds the source (:mod:`pour_gym.envs.holders`) |
     | ``**holder_kwargs`` | | | the holder's own arguments |
@@ -171,6 +174,17 @@ class PourEnv(PourGymEnv):
     100; for curricula, see :class:`pour_gym.agents.curriculum.TrainingStarts`).
 
     ## Version History
+    * v1: the same class, task and physics as v0 with the defaults under which a standard
+      learner learns the task from its reward (docs: learning from the reward):
+      ``tilt_control="angle"`` (a zero action holds 57.5 deg, so exploration reaches the
+      tilts at which a fill pours); potential-based shaping towards the pouring point
+      (``aim_weight=0.2``) and upright once the amount is out (``upright_weight=0.5``),
+      with no shaping towards a tilt (a tilt potential kept by a source held just below
+      its onset until the time limit made hovering there pay more than pouring);
+      ``overshoot_weight=1.0`` (progress and overshoot together then sum to minus the
+      change of |poured - T| / T: pouring too much costs what pouring too little does,
+      and pouring everything no longer costs more than never pouring);
+      ``success_weight=2.0``. Argument ``hide`` added (both versions).
     * v0 (this release): the fluid takes substeps by the CFL bound and puts back particles
       that tunnelled into a wall (``info["fluid_corrections"]``), so no action raises; an
       episode ends after a pour only when ``pour_threshold`` particles stayed out for
@@ -220,6 +234,7 @@ class PourEnv(PourGymEnv):
         upright_weight: float = 0.0,
         tilt_weight: float = 0.0,
         control_weight: float = 0.0,
+        hide: tuple[str, ...] | list[str] = (),
         render_mode: str | None = None,
         holder: str = "free",
         **holder_kwargs,
@@ -250,6 +265,7 @@ class PourEnv(PourGymEnv):
             upright_weight=upright_weight,
             tilt_weight=tilt_weight,
             control_weight=control_weight,
+            hide=hide,
             render_mode=render_mode,
             holder=holder,
             **holder_kwargs,
@@ -307,6 +323,16 @@ class PourEnv(PourGymEnv):
         self.dt = 0.1
         names = FEATURE_NAMES if obs_mode == "features" else STATE_NAMES
         self.obs_names = names + self.holder.obs_names
+        hide = (hide,) if isinstance(hide, str) else tuple(hide)
+        unknown = sorted(set(hide) - set(self.obs_names))
+        if unknown:
+            raise ValueError(
+                f"hide names observation entries; {obs_mode!r} has no {unknown} (it has "
+                f"{', '.join(self.obs_names)})"
+            )
+        self.hide = hide
+        # Indices, not names, on every step.
+        self._hidden = np.array([self.obs_names.index(h) for h in self.hide], dtype=np.int64)
         n = len(self.obs_names)
         self.observation_space = spaces.Box(-OBS_LIMIT, OBS_LIMIT, (n,), np.float32)
         self.action_space = self.holder.action_space()
@@ -488,7 +514,9 @@ class PourEnv(PourGymEnv):
         )
 
     def _observation(self) -> np.ndarray:
-        return self.observe(self.obs_mode)
+        obs = self.observe(self.obs_mode)
+        obs[self._hidden] = 0.0
+        return obs
 
     def observe(self, obs_mode: str) -> np.ndarray:
         """The current observation in either mode (``"features"`` or ``"state"``).

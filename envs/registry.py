@@ -18,11 +18,21 @@ if TYPE_CHECKING:
 
 NAMESPACE = "PourGym"
 POUR_V0 = "PourGym/Pour-v0"
+POUR_V1 = "PourGym/Pour-v1"
 PANDA_POUR_V0 = "PourGym/PandaPour-v0"
 PARTICLE_DROP_V0 = "PourGym/ParticleDrop-v0"
 TILT_POUR_V0 = "PourGym/TiltPour-v0"
 # Small fluids for a pouring episode that takes seconds, not minutes.
 _QUICK_POUR = {"source_particles": 300, "amount_range": (40, 80)}
+# Pour-v1: Pour-v0's class with defaults a learner can learn from the reward (the class's
+# Version History says why each).
+POUR_V1_DEFAULTS = {
+    "tilt_control": "angle",
+    "aim_weight": 0.2,
+    "upright_weight": 0.5,
+    "success_weight": 2.0,
+    "overshoot_weight": 1.0,
+}
 
 
 @dataclass(frozen=True)
@@ -33,7 +43,8 @@ class EnvEntry:
         id: the Gymnasium id, ``PourGym/<Name>-v<N>``.
         entry_point: ``"module:Class"``.
         max_episode_steps: truncation (Gymnasium's ``TimeLimit``).
-        kwargs: arguments the id fixes (e.g. the holder of the source).
+        kwargs: the id's defaults for the entry point's arguments (e.g. the holder of the
+            source, Pour-v1's reward weights); ``gym.make`` arguments override them.
         quick: arguments for a short episode (small fluids): what tests, examples and
             smoke runs pass.
         doc: ``"module:name"`` of the class whose docstring documents the id (its docs
@@ -55,6 +66,9 @@ class EnvEntry:
 
 ENVS: tuple[EnvEntry, ...] = (
     EnvEntry(POUR_V0, "pour_gym.envs.pour:PourEnv", 250, quick=_QUICK_POUR),
+    EnvEntry(
+        POUR_V1, "pour_gym.envs.pour:PourEnv", 250, kwargs=POUR_V1_DEFAULTS, quick=_QUICK_POUR
+    ),
     EnvEntry(PARTICLE_DROP_V0, "pour_gym.envs.particle_drop:ParticleDropEnv", 1),
     EnvEntry(TILT_POUR_V0, "pour_gym.envs.tilt_pour:TiltPourEnv", 1),
     EnvEntry(

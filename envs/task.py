@@ -56,6 +56,39 @@ class Task:
             out["spilled"] = float(info["spilled"])
         return out
 
+    @property
+    def outcomes(self) -> tuple[str, ...]:
+        """The names :meth:`outcome` returns (empty for a task with none)."""
+        return tuple(POUR_OUTCOMES) if self.pours else ()
+
+    def outcome(self, info: dict) -> str | None:
+        """Why a pouring episode ended as it did, from its last step's info.
+
+        Returns:
+            One of :data:`POUR_OUTCOMES` (the first that applies, in its order); None for
+            a task that does not pour.
+        """
+        if not self.pours:
+            return None
+        if info["is_success"]:
+            return "success"
+        if info["spilled"] > 0:
+            return "spilled"
+        error = info["poured"] - info["target_amount"]
+        if error > info["tolerance"]:
+            return "overshot"
+        if not info["poured_any"]:
+            return "never_poured"
+        if error < -info["tolerance"]:
+            return "under_poured"
+        return "unfinished"
+
+    def outcome_shares(self, infos) -> dict[str, float]:
+        """The share of episodes (their last infos) per outcome, as ``outcome_<name>``."""
+        found = [self.outcome(info) for info in infos]
+        n = max(len(found), 1)
+        return {f"outcome_{name}": found.count(name) / n for name in self.outcomes}
+
     def diagnostics(self, info: dict) -> dict[str, float]:
         """What an episode says about the simulation rather than the policy.
 
@@ -64,6 +97,18 @@ class Task:
             they had tunnelled into in the last step); the others: nothing.
         """
         return {"corrections": float(info["fluid_corrections"])} if self.pours else {}
+
+
+# How a pouring episode ended, first match wins (Task.outcome); README: "why episodes fail".
+POUR_OUTCOMES = {
+    "success": "the amount within tolerance, nothing spilled, the source upright",
+    "spilled": "a particle came to rest outside both containers",
+    "overshot": "more than the target amount plus the tolerance in the target",
+    "never_poured": "no pour happened (the source never tilted far enough over the target)",
+    "under_poured": "poured, but stopped short of the target amount less the tolerance",
+    "unfinished": "the amount right and nothing spilled, but the episode was cut short "
+    "before the source stood upright with nothing in flight",
+}
 
 
 def mean_metrics(episodes: Iterable[dict[str, float]]) -> dict[str, float]:

@@ -165,6 +165,38 @@ def test_pour_recipe_trains_and_its_model_evaluates_on_a_user_mesh(tmp_path):
 
 
 @pytest.mark.slow
+@pytest.mark.parametrize("algo", ["sac", "td3", "ppo"])
+def test_pour_v1_recipes_learn_from_the_reward_a_few_hundred_steps(algo, tmp_path):
+    """Each Pour-v1 recipe (the reward alone: no demonstrations) trains, records outcomes
+    in its curve and evaluates with its failures by why; small fluids, few steps."""
+    out = tmp_path / algo
+    options = (
+        "--env", "PourGym/Pour-v1", "--algo", algo, "--objects", "red_cup",
+        "--timesteps", "256", "--eval-objects", "red_cup,broad_cup", "--eval-episodes", "1",
+        "--curve-every", "256", "--curve-episodes", "1",
+        "--env-kwargs", '{"source_particles": 300, "amount_range": [40, 80]}',
+        "--set", "env_wrapper=[{pour_gym.agents.curriculum.TrainingStarts: {near_target: 0.5}}]",
+    )  # fmt: skip
+    if algo == "ppo":
+        options += ("--set", "n_steps=128", "--set", "batch_size=32")
+    else:
+        options += ("--set", "learning_starts=64", "--set", "batch_size=32")
+    done = subprocess.run(train_command(out, *options), capture_output=True, text=True,
+                          check=True)  # fmt: skip
+    doc = json.loads(done.stdout)
+    assert [r["object"] for r in doc["rows"]] == ["red_cup", "broad_cup"]
+    assert doc["train_seconds"] > 0
+    config = json.loads((out / "config.json").read_text())
+    assert config["demonstrations"] is None and config["env"] == "PourGym/Pour-v1"
+    for row in doc["rows"]:  # every episode ended one way or another
+        shares = [v for k, v in row.items() if k.startswith("outcome_")]
+        assert len(shares) == 6 and sum(shares) == pytest.approx(1.0)
+    header = (out / "curve.csv").read_text().splitlines()[0].split(",")
+    assert "outcome_never_poured" in header and (out / "curve.png").is_file()
+    assert "failures" in (out / "eval.md").read_text()
+
+
+@pytest.mark.slow
 def test_evaluate_and_search_at_tiny_size():
     from pour_gym.agents.scripted import ScriptedPourPolicy
 

@@ -17,7 +17,7 @@ from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 from pour_gym.agents.rollout import rollout
 from pour_gym.agents.scripted import ScriptedPourPolicy
-from pour_gym.envs import ENV_IDS, ENVS, POUR, POUR_V0, entry, task_of
+from pour_gym.envs import ENV_IDS, ENVS, POUR, POUR_V0, POUR_V1, entry, task_of
 from pour_gym.features import fluid_features, relative_distance_height
 from pour_gym.objects import cylinder_cup
 
@@ -27,7 +27,7 @@ def test_every_registered_id_is_in_the_registry_list_the_generic_tests_use():
     registered under PourGym/ anywhere else would escape them, so none may be."""
     registered = {env_id for env_id in gym.registry if env_id.startswith("PourGym/")}
     assert registered == set(ENV_IDS) == {e.id for e in ENVS}
-    assert len(ENV_IDS) == len(set(ENV_IDS)) == 4
+    assert len(ENV_IDS) == len(set(ENV_IDS)) == 5
     for e in ENVS:
         spec = gym.spec(e.id)
         assert spec.entry_point == e.entry_point
@@ -39,18 +39,52 @@ def test_every_registered_id_is_in_the_registry_list_the_generic_tests_use():
 
 
 def test_each_env_names_its_task_and_the_task_scores_an_episode():
-    assert [task_of(e) for e in ENV_IDS] == [POUR, task_of("PourGym/ParticleDrop-v0"),
+    assert [task_of(e) for e in ENV_IDS] == [POUR, POUR, task_of("PourGym/ParticleDrop-v0"),
                                             task_of("PourGym/TiltPour-v0"), POUR]  # fmt: skip
-    assert [task_of(e).pours for e in ENV_IDS] == [True, False, False, True]
+    assert [task_of(e).pours for e in ENV_IDS] == [True, True, False, False, True]
     info = {"is_success": True, "poured": 95, "target_amount": 100, "spilled": 2,
             "fluid_corrections": 7}  # fmt: skip
     assert POUR.metrics(info, 1.5) == {
         "success": 1.0, "return": 1.5, "amount_error": 5.0, "spilled": 2.0,
     }  # fmt: skip
     assert POUR.diagnostics(info) == {"corrections": 7.0}
+    # Why an episode failed: the first outcome that applies.
+    base = {"is_success": False, "poured": 100, "target_amount": 100, "tolerance": 10,
+            "spilled": 0, "poured_any": True}  # fmt: skip
+    cases = [
+        ({"is_success": True}, "success"),
+        ({"spilled": 1, "poured": 200}, "spilled"),
+        ({"poured": 111}, "overshot"),
+        ({"poured": 0, "poured_any": False}, "never_poured"),
+        ({"poured": 89}, "under_poured"),
+        ({"poured": 110}, "unfinished"),
+    ]
+    assert [POUR.outcome({**base, **change}) for change, _ in cases] == [o for _, o in cases]
+    shares = POUR.outcome_shares([{**base, **c} for c, _ in cases[:2]] + [base, base])
+    assert shares["outcome_success"] == 0.25 and shares["outcome_unfinished"] == 0.5
+    assert sum(shares.values()) == 1.0 and len(shares) == len(POUR.outcomes) == 6
     drop = task_of("PourGym/ParticleDrop-v0")
     assert drop.metrics({"is_success": False}, -1.0) == {"success": 0.0, "return": -1.0}
     assert drop.diagnostics({}) == {}
+    assert drop.outcome({}) is None and drop.outcome_shares([{}]) == {}
+
+
+def test_pour_v1_is_pour_v0_with_learnable_defaults_and_hide_blinds_entries(make_env):
+    """Pour-v1's defaults (angle tilt, shaping on) and the hide argument of both versions."""
+    v0, v1 = make_env(POUR_V0, objects="red_cup"), make_env(POUR_V1, objects="red_cup")
+    assert v0.unwrapped.tilt_control == "rate" and v1.unwrapped.tilt_control == "angle"
+    assert v1.unwrapped.reward_weights["aim"] == 0.2 > v0.unwrapped.reward_weights["aim"] == 0
+    o0, _ = v0.reset(seed=3)
+    o1, _ = v1.reset(seed=3)
+    np.testing.assert_array_equal(o0, o1)  # the same start; only the defaults differ
+    hidden = make_env(POUR_V1, objects="red_cup", hide=["tilt", "source_height"])
+    oh, _ = hidden.reset(seed=3)
+    names = hidden.unwrapped.obs_names
+    kept = [k for k, n in enumerate(names) if n not in ("tilt", "source_height")]
+    assert oh[names.index("source_height")] == 0.0 != o1[names.index("source_height")]
+    np.testing.assert_array_equal(oh[kept], o1[kept])
+    with pytest.raises(ValueError, match="has no \\['lip_x'\\]"):
+        make_env(POUR_V1, objects="red_cup", hide=["lip_x"])  # a state entry, not a feature
 
 
 @pytest.mark.parametrize("env_id", ENV_IDS)

@@ -59,7 +59,11 @@ def record_curve_point(
     episodes = [rollout(env, policy, seed=seed + k) for k in range(config.curve_episodes)]
     env.close()
     key, value = x if x is not None else ("timesteps", int(model.num_timesteps))
-    point = {key: int(value), **mean_metrics(e.metrics(task) for e in episodes)}
+    point = {
+        key: int(value),
+        **mean_metrics(e.metrics(task) for e in episodes),
+        **task.outcome_shares(e.info for e in episodes),
+    }
     path = out / name
     new = not path.is_file()
     with open(path, "a") as fh:
@@ -109,10 +113,11 @@ def plot_curve(out: Path, title: str) -> Path | None:
     pour = any(
         "amount_error" in d and not np.all(np.isnan(d["amount_error"])) for d, _, _ in curves
     )
+    outcomes = pour and any("outcome_success" in d for d, _, _ in curves)
+    ncols = 1 + int(pour) + int(outcomes)
     fig, axes = plt.subplots(
-        len(curves), 2 if pour else 1, figsize=(11 if pour else 7, 4 * len(curves)),
-        squeeze=False,
-    )  # fmt: skip
+        len(curves), ncols, figsize=(4 + 3.5 * ncols, 4 * len(curves)), squeeze=False
+    )
     for row, (data, key, label) in enumerate(curves):
         ax = axes[row, 0]
         steps = data[key]
@@ -132,6 +137,16 @@ def plot_curve(out: Path, title: str) -> Path | None:
             ax.set_xlabel(label)
             ax.set_ylabel("particles (mean per episode)")
             ax.legend(fontsize=8)
+        if outcomes and "outcome_success" in data:
+            # Why episodes end as they do, stacked: a curve of what the learner gets wrong.
+            names = [k for k in data if k.startswith("outcome_")]
+            ax = axes[row, 2]
+            ax.stackplot(steps, [data[k] for k in names],
+                         labels=[k.removeprefix("outcome_") for k in names])  # fmt: skip
+            ax.set_xlabel(label)
+            ax.set_ylabel("share of episodes")
+            ax.set_ylim(0, 1)
+            ax.legend(fontsize=7, loc="upper left")
     fig.suptitle(title, fontsize=9)
     fig.tight_layout()
     png = out / "curve.png"

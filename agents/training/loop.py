@@ -6,6 +6,7 @@ import dataclasses
 import functools
 import json
 import shutil
+import time
 
 from pour_gym.agents.evaluate import evaluate_policy, evaluation_table
 from pour_gym.agents.rollout import sb3_policy
@@ -60,8 +61,11 @@ def train(config: TrainConfig) -> dict:
     """Train (or resume) an SB3 agent, save it, and evaluate it on every container.
 
     Returns:
-        The evaluation document (also written to ``eval.json``), with ``model`` and
-        ``timesteps``.
+        The evaluation document (also written to ``eval.json``), with ``model``,
+        ``timesteps``, ``train_seconds`` (the wall time of everything before the
+        evaluation in this process, s) and ``resumed_from`` (the steps of the checkpoint
+        it resumed from; 0 for a run from scratch, whose earlier parts' SB3 logs are kept
+        as ``progress_until_<steps>.csv``).
 
     Raises:
         InputError: a bad option or recipe (named), before any work.
@@ -69,6 +73,7 @@ def train(config: TrainConfig) -> dict:
     from stable_baselines3.common.logger import configure
     from stable_baselines3.common.vec_env import VecNormalize
 
+    started = time.perf_counter()
     cls = algorithm(config.algo)
     if config.timesteps <= 0:
         raise InputError(f"--timesteps must be positive, not {config.timesteps}")
@@ -140,6 +145,9 @@ def train(config: TrainConfig) -> dict:
 
             normaliser = venv if isinstance(venv, VecNormalize) else None
             regularise_actor(model, demos, normaliser, weight=demos_cfg.bc_weight)
+    if checkpoint is not None and (out / "progress.csv").is_file():
+        # SB3's logger starts progress.csv afresh: the part before this resume is kept.
+        (out / "progress.csv").replace(out / f"progress_until_{done}.csv")
     model.set_logger(configure(str(out), ["csv"]))
     remaining = config.timesteps - done
     if remaining > 0:
@@ -152,6 +160,9 @@ def train(config: TrainConfig) -> dict:
     model.save(out / "model.zip")
     save_normaliser(venv, out)
     venv.close()
+    # Demonstrations, cloning, learning and the curve's episodes; not the evaluation below.
+    # A resumed run counts this process's part only.
+    train_seconds = time.perf_counter() - started
     best = out / BEST
     if config.keep_best and (best / "model.zip").is_file():
         # The model is the best learning-curve point's (best/point.json says which).
@@ -169,7 +180,8 @@ def train(config: TrainConfig) -> dict:
         env_kwargs=arguments,
         trained_on=train_objects,
     )
-    result.update(model=str(out / "model.zip"), timesteps=config.timesteps, algo=config.algo)
+    result.update(model=str(out / "model.zip"), timesteps=config.timesteps, algo=config.algo,
+                  train_seconds=train_seconds, resumed_from=done)  # fmt: skip
     (out / "eval.json").write_text(json.dumps(result, indent=2) + "\n")
     (out / "eval.md").write_text(evaluation_table(result) + "\n")
     return result

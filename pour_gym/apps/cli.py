@@ -14,7 +14,7 @@ import sys
 from collections.abc import Callable
 
 from pour_gym.apps import commands
-from pour_gym.envs import POUR_V0
+from pour_gym.envs import POUR_V0, POUR_V1
 from pour_gym.errors import InputError, SimulationError
 from pour_gym.io.stdio import redirect_stdout_fd
 
@@ -77,10 +77,16 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--scale", type=float, default=1.0, help="mesh units to m")
 
     p = add(
-        "report", commands.cmd_report, "tables beside the thesis's (scan + reconstruct all objects)"
+        "report",
+        commands.cmd_report,
+        "reports: reconstruction and warping beside the thesis's tables, generalisation, "
+        "baselines over seeds",
     )
-    p.add_argument("what", choices=["reconstruction", "warping", "generalisation"])
-    p.add_argument("--runs", help="generalisation: folder of train.py runs")
+    p.add_argument("what", choices=["reconstruction", "warping", "generalisation", "baselines"])
+    p.add_argument(
+        "--runs", nargs="+", default=[],
+        help="generalisation, baselines: train.py run directories or folders of them",
+    )  # fmt: skip
     p.add_argument("--out", help="generalisation: folder for report.md and plots")
 
     p = add(
@@ -215,6 +221,24 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--target-amount", type=int, help="particles to pour (default: random)")
     p.add_argument("--out", default="docs/environments", help="output folder")
+
+    p = add(
+        "demonstrations",
+        commands.cmd_demonstrations,
+        "record the scripted expert's episodes as a Minari dataset (offline RL)",
+    )
+    p.add_argument(
+        "--minari", required=True, metavar="NAME",
+        help="dataset id, [namespace/]name-vN (e.g. pourgym/red-cup-expert-v0)",
+    )  # fmt: skip
+    p.add_argument("--env", default=POUR_V1, help="a pouring environment id")
+    p.add_argument("--objects", default="red_cup", help="split or comma-separated containers")
+    p.add_argument("--episodes", type=int, default=50)
+    p.add_argument("--seed", type=int, default=0, help="episode k is reset with seed + k")
+    p.add_argument("--obs-mode", choices=["features", "state"], default="features")
+    p.add_argument("--noise", type=float, default=0.0, help="action noise std (0: the expert's)")
+    p.add_argument("--out", help="Minari's datasets folder (default: $MINARI_DATASETS_PATH or "
+                   "~/.minari/datasets)")  # fmt: skip
 
     p = add("train", commands.cmd_train, "train an SB3 agent and evaluate it (as train.py)")
     config_parser(p.description, parser=p)

@@ -138,12 +138,17 @@ def cmd_measure(args: argparse.Namespace) -> Output:
 
 
 def cmd_report(args: argparse.Namespace) -> Output:
-    """Tables beside the thesis's: reconstruction (chapter 3) or warping (chapter 4)."""
+    """Reports: reconstruction (ch. 3), warping (ch. 4), generalisation, baselines."""
     from tqdm import tqdm
 
     from pour_gym.mesh.modelgen import generate_model, reconstruction_table
     from pour_gym.objects import OBJECT_NAMES
 
+    if args.what == "baselines":
+        from pour_gym.agents.baselines import REPORT, baselines_report
+
+        doc = baselines_report(args.runs)
+        return (doc, lambda: REPORT.read_text())
     if args.what == "generalisation":
         from pour_gym.agents.study import study_report
 
@@ -345,18 +350,19 @@ def cmd_evaluate(args: argparse.Namespace) -> Output:
     trained: list[str] = []
     if args.policy == "scripted" or args.policy.endswith(".json"):
         args.env = args.env or POUR_V0
-        from pour_gym.agents.scripted import ScriptedPourPolicy
+        from pour_gym.agents.scripted import ScriptedPourPolicy, tilt_settings
         from pour_gym.agents.search import load_search
 
         if not _pours(args.env):
             raise InputError(
                 f"the scripted policy pours from a source into a target, not in {args.env}"
             )
+        tilt = tilt_settings(args.env)
         if args.policy == "scripted":
-            policy = ScriptedPourPolicy()
+            policy = ScriptedPourPolicy(**tilt)
         else:  # the best of a policy search, trained on the containers it searched on
             found = load_search(args.policy)
-            policy = ScriptedPourPolicy(**found["best"])
+            policy = ScriptedPourPolicy(**found["best"], **tilt)
             trained = found.get("sources", [])
     else:
         from pour_gym.agents.training import load_run
@@ -434,6 +440,32 @@ def cmd_poc(args: argparse.Namespace) -> Output:
         episodes=args.episodes,
     )
     return (doc, lambda: poc_table(doc))
+
+
+def cmd_demonstrations(args: argparse.Namespace) -> Output:
+    """The scripted expert's episodes as a Minari dataset."""
+    from pour_gym.agents.minari_dataset import record_minari_dataset
+    from pour_gym.assets import expand_containers
+
+    env_kwargs = {"objects": list(expand_containers(args.objects)), "obs_mode": args.obs_mode}
+    dataset = record_minari_dataset(
+        args.minari, args.env, env_kwargs, args.episodes, seed=args.seed, noise=args.noise,
+        root=Path(args.out) if args.out else None,
+    )  # fmt: skip
+    doc = {
+        "dataset": args.minari,
+        "path": str(dataset.spec.data_path),
+        "episodes": int(dataset.total_episodes),
+        "steps": int(dataset.total_steps),
+        "env": args.env,
+        "env_kwargs": env_kwargs,
+    }
+    root = f"MINARI_DATASETS_PATH={Path(args.out).resolve()} " if args.out else ""
+    text = (
+        f"wrote {doc['episodes']} episodes, {doc['steps']} steps, to {doc['path']}\n"
+        f"load it: {root}python -c \"import minari; d = minari.load_dataset('{args.minari}')\""
+    )
+    return (doc, lambda: text)
 
 
 def cmd_train(args: argparse.Namespace) -> Output:

@@ -1,0 +1,286 @@
+"""The baselines report: algorithms x observation modes, several seeds, intervals over seeds.
+
+``pour-gym report baselines --runs DIR...`` reads ``train.py`` run directories, keeps one
+small summary per run (``docs/baselines/runs/<run>.json``: the run's recipe, its
+evaluation, its learning curve, its wall time) and writes ``docs/baselines.md`` and
+``docs/baselines/curves.png`` from every summary there. The summaries are what is
+committed: the report can be regenerated from them without the run directories (their
+checkpoints and replay buffers are hundreds of MB).
+
+A row is one way of training (environment, algorithm, observation mode, and whether it
+learnt from the reward alone, cloned the expert, or cloned then learnt): its seeds' mean
+of each metric, with a 95 % percentile-bootstrap interval over the seeds
+(``scipy.stats.bootstrap``). rliable (Agarwal et al. 2021) is the field's tool for
+intervals over runs and tasks; its stratified bootstrap over one task's seeds is this
+percentile bootstrap, and its dependencies (arch, statsmodels, seaborn) would be
+pour-gym's only use of them.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+
+from pour_gym.errors import InputError
+from pour_gym.report.tables import markdown_table
+
+SUMMARIES = Path("docs/baselines/runs")
+REPORT = Path("docs/baselines.md")
+CURVES = Path("docs/baselines/curves.png")
+CONFIDENCE = 0.95
+METRICS = {
+    "trained_success": "success, trained on",
+    "unseen_success": "success, unseen",
+    "unseen_amount_error": "amount error, unseen (particles)",
+    "unseen_spilled": "spilled, unseen (particles)",
+}
+
+
+def training_kind(config: dict) -> str:
+    """How a run learnt: ``"reward"``, ``"clone"`` (cloning only) or ``"clone + RL"``."""
+    if not config.get("demonstrations"):
+        return "reward"
+    steps = config.get("hyperparameters", {}).get("gradient_steps", 1)
+    return "clone" if steps == 0 else "clone + RL"
+
+
+def _wall_seconds(run_dir: Path, result: dict) -> float | None:
+    """A run's training wall time, s.
+
+    Its last process's (``eval.json``) plus, for a resumed run, the learning loops of the
+    parts before (``progress_until_*.csv``). None for a run from before ``eval.json``
+    recorded it (SB3's ``progress.csv`` times the learning loop alone, not the cloning
+    before it).
+    """
+    if "train_seconds" not in result:
+        return None
+    total = float(result["train_seconds"])
+    for part in run_dir.glob("progress_until_*.csv"):
+        with open(part, newline="") as fh:
+            times = [float(r["time/time_elapsed"]) for r in csv.DictReader(fh)
+                     if r.get("time/time_elapsed")]  # fmt: skip
+        total += times[-1] if times else 0.0
+    return total
+
+
+def run_summary(run_dir: Path) -> dict:
+    """The summary of one ``train.py`` run directory (config.json and eval.json in it).
+
+    Raises:
+        InputError: a folder that is not a finished run.
+    """
+    from pour_gym.agents.training.curves import read_curve
+
+    run_dir = Path(run_dir)
+    paths = {name: run_dir / f"{name}.json" for name in ("config", "eval")}
+    missing = [str(p) for p in paths.values() if not p.is_file()]
+    if missing:
+        raise InputError(f"{run_dir} is not a finished train.py run: {', '.join(missing)} missing")
+    config = json.loads(paths["config"].read_text())
+    result = json.loads(paths["eval"].read_text())
+    rows = result["rows"]
+    trained = [r for r in rows if r["trained_on"]]
+    unseen = [r for r in rows if not r["trained_on"]]
+    curve = read_curve(run_dir / "curve.csv")
+
+    def mean(group: list[dict], key: str) -> float | None:
+        return float(np.mean([r[key] for r in group])) if group else None
+
+    return {
+        "run": run_dir.name,
+        "env": config["env"],
+        "algo": config["algo"],
+        "obs_mode": config["obs_mode"],
+        "kind": training_kind(config),
+        "seed": config["seed"],
+        "timesteps": config["timesteps"],
+        "wall_seconds": _wall_seconds(run_dir, result),
+        "objects": config["objects"],
+        "env_kwargs": config.get("env_kwargs", {}),
+        "metrics": {
+            "trained_success": mean(trained, "success"),
+            "unseen_success": mean(unseen, "success"),
+            "unseen_amount_error": mean(unseen, "amount_error"),
+            "unseen_spilled": mean(unseen, "spilled"),
+        },
+        "eval_episodes": result["episodes"],
+        "eval_rows": rows,
+        "curve": {k: v.tolist() for k, v in curve.items()} if curve is not None else None,
+    }
+
+
+def interval(values: list[float]) -> tuple[float, float] | None:
+    """The 95 % percentile-bootstrap interval of the mean over seeds (None for one seed)."""
+    from scipy.stats import bootstrap
+
+    x = np.asarray(values, dtype=np.float64)
+    if len(x) < 2:
+        return None
+    if np.ptp(x) == 0:  # every seed the same: the interval is that value
+        return float(x[0]), float(x[0])
+    res = bootstrap((x,), np.mean, confidence_level=CONFIDENCE, method="percentile",
+                    n_resamples=10_000, random_state=0)  # fmt: skip
+    return float(res.confidence_interval.low), float(res.confidence_interval.high)
+
+
+def _group_key(s: dict) -> tuple[str, str, str, str]:
+    return (s["env"], s["algo"], s["obs_mode"], s["kind"])
+
+
+def _cell(values: list[float | None], digits: int) -> str:
+    present = [v for v in values if v is not None]
+    if not present:
+        return "-"
+    text = f"{np.mean(present):.{digits}f}"
+    ci = interval(present)
+    return text + (f" [{ci[0]:.{digits}f}, {ci[1]:.{digits}f}]" if ci else "")
+
+
+def _minutes(wall: list[float], runs: int) -> str:
+    """Mean wall minutes and their range; how many runs recorded it, if not all."""
+    if not wall:
+        return "-"
+    text = (
+        f"{wall[0]:.1f}"
+        if len(wall) == 1
+        else f"{np.mean(wall):.1f} ({min(wall):.1f}-{max(wall):.1f})"
+    )
+    return text + (f", {len(wall)} of {runs} runs" if len(wall) < runs else "")
+
+
+def _plot(groups: dict[tuple, list[dict]], path: Path) -> Path:
+    """Learning curves: each row's mean success against env steps, the seeds' range as a band."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(8, 4.5))
+    for key, runs in sorted(groups.items()):
+        curves = [r["curve"] for r in runs if r["curve"]]
+        if not curves:
+            continue
+        steps = sorted(set.intersection(*(set(c["timesteps"]) for c in curves)))
+        if not steps:
+            continue
+        ys = np.array(
+            [[dict(zip(c["timesteps"], c["success"], strict=True))[x] for x in steps]
+             for c in curves]
+        )  # fmt: skip
+        env, algo, mode, kind = key
+        seeds = f"{len(curves)} seed" + ("s" if len(curves) > 1 else "")
+        label = f"{env.split('/')[-1]} {algo.upper()} {mode}, {kind} ({seeds})"
+        line = ax.plot(steps, ys.mean(axis=0), "o-", label=label, markersize=3)[0]
+        if len(curves) > 1:
+            ax.fill_between(steps, ys.min(axis=0), ys.max(axis=0), color=line.get_color(),
+                            alpha=0.2)  # fmt: skip
+    # Log steps: a clone's 2000 steps and a learner's 400k on one axis.
+    ax.set_xscale("log")
+    ax.set_xlabel("environment steps")
+    ax.set_ylabel("success on the training container\n(deterministic policy)")
+    ax.set_ylim(-0.02, 1.02)
+    ax.set_title("Learning curves: mean over seeds, band: their range", fontsize=10)
+    ax.legend(fontsize=7, loc="center left")
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def baselines_report(
+    runs: list[str | Path] = (),
+    summaries: Path = SUMMARIES,
+    report: Path = REPORT,
+    curves: Path = CURVES,
+) -> dict:
+    """Summarise runs into ``summaries``, then write the report and the curves from them all.
+
+    Args:
+        runs: ``train.py`` run directories (or folders of them) to add; may be empty to
+            regenerate from the committed summaries.
+        summaries: the folder of run summaries.
+        report: the markdown report to write.
+        curves: the learning curves' PNG.
+
+    Returns:
+        ``{"rows": [{env, algo, obs_mode, kind, seeds, each metric's mean and interval,
+        timesteps, wall minutes}]}``.
+
+    Raises:
+        InputError: a folder that holds no finished run, or no summaries at all.
+    """
+    summaries = Path(summaries)
+    summaries.mkdir(parents=True, exist_ok=True)
+    for given in runs:
+        given = Path(given)
+        dirs = [given] if (given / "config.json").is_file() else sorted(
+            p.parent for p in given.glob("*/eval.json")
+        )  # fmt: skip
+        if not dirs:
+            raise InputError(f"{given} holds no finished train.py run (config.json, eval.json)")
+        for d in dirs:
+            s = run_summary(d)
+            (summaries / f"{s['run']}.json").write_text(json.dumps(s, indent=1) + "\n")
+    found = [json.loads(p.read_text()) for p in sorted(summaries.glob("*.json"))]
+    if not found:
+        raise InputError(f"no run summaries in {summaries}: pass --runs DIR")
+    groups: dict[tuple, list[dict]] = {}
+    for s in found:
+        groups.setdefault(_group_key(s), []).append(s)
+    header = ["env", "algorithm", "observation", "learnt from", "seeds",
+              *METRICS.values(), "env steps", "wall time (min)"]  # fmt: skip
+    table, rows = [], []
+    for key, group in sorted(groups.items()):
+        env, algo, mode, kind = key
+        row = {"env": env, "algo": algo, "obs_mode": mode, "kind": kind,
+               "seeds": sorted(s["seed"] for s in group)}  # fmt: skip
+        cells = []
+        for name in METRICS:
+            values = [s["metrics"][name] for s in group]
+            present = [v for v in values if v is not None]
+            row[name] = {"mean": float(np.mean(present)) if present else None,
+                         "interval": interval(present)}  # fmt: skip
+            cells.append(_cell(values, 2 if "success" in name else 1))
+        wall = [s["wall_seconds"] / 60 for s in group if s["wall_seconds"] is not None]
+        steps = sorted({s["timesteps"] for s in group})
+        row.update(timesteps=steps, wall_minutes=wall)
+        rows.append(row)
+        table.append(
+            [
+                env.split("/")[-1],
+                algo.upper(),
+                mode,
+                kind,
+                str(len(group)),
+                *cells,
+                "/".join(f"{t:,}" for t in steps),
+                _minutes(wall, len(group)),
+            ]
+        )
+    _plot(groups, Path(curves))
+    lines = [
+        "# Baselines: algorithms x observations, over seeds",
+        "",
+        "<!-- Written by `pour-gym report baselines` from docs/baselines/runs/*.json. -->",
+        "",
+        "Each row is one way of training on the red cup, run with several seeds; each cell "
+        "is the mean over the seeds with a 95 % percentile-bootstrap interval over them in "
+        "brackets (`scipy.stats.bootstrap`; one seed: no interval). *Trained on*: the "
+        "training container's evaluation episodes; *unseen*: the mean over the containers "
+        "the run never trained on, each as source and target, at seeds training never used. "
+        "Amount error is |poured - target| in particles (0.125 ml each).",
+        "",
+        markdown_table(header, table, align="llllr" + "r" * (len(METRICS) + 2)),
+        "",
+        f"![learning curves]({os.path.relpath(curves, Path(report).parent)})",
+        "",
+        "Runs: " + ", ".join(f"`{s['run']}`" for s in found) + ".",
+        "",
+    ]
+    Path(report).write_text("\n".join(lines))
+    return {"rows": rows}

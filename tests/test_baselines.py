@@ -1,0 +1,70 @@
+"""The baselines report: seeds grouped by how they trained, means and intervals over seeds."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from pour_gym.agents.baselines import baselines_report, interval, training_kind
+from pour_gym.errors import InputError
+
+
+def _run(folder, seed, success, algo="sac", mode="features", demos=None):
+    """A finished run directory: config.json, eval.json (red cup trained on, two unseen)."""
+    folder.mkdir(parents=True)
+    config = {"env": "PourGym/Pour-v1", "algo": algo, "obs_mode": mode, "seed": seed,
+              "timesteps": 1000, "objects": "red_cup", "demonstrations": demos,
+              "hyperparameters": {"gradient_steps": 1}}  # fmt: skip
+    rows = [
+        {"object": "red_cup", "trained_on": True, "success": success, "amount_error": 4.0,
+         "spilled": 0.0},
+        {"object": "broad_cup", "trained_on": False, "success": success / 2,
+         "amount_error": 10.0, "spilled": 1.0},
+        {"object": "high_cup", "trained_on": False, "success": 0.0, "amount_error": 20.0,
+         "spilled": 3.0},
+    ]  # fmt: skip
+    (folder / "config.json").write_text(json.dumps(config))
+    (folder / "eval.json").write_text(
+        json.dumps({"episodes": 10, "rows": rows, "train_seconds": 600.0 * (seed + 1)})
+    )
+    (folder / "curve.csv").write_text(f"timesteps,success\n500,0\n1000,{success}\n")
+
+
+def test_report_groups_seeds_and_gives_intervals_over_them(tmp_path):
+    for seed, success in enumerate([0.6, 0.8, 1.0]):
+        _run(tmp_path / "runs" / f"sac_s{seed}", seed, success)
+    _run(tmp_path / "runs" / "ppo_s0", 0, 0.2, algo="ppo")
+    paths = {"summaries": tmp_path / "sum", "report": tmp_path / "b.md",
+             "curves": tmp_path / "b" / "curves.png"}  # fmt: skip
+    doc = baselines_report([tmp_path / "runs"], **paths)
+    rows = {r["algo"]: r for r in doc["rows"]}
+    sac = rows["sac"]
+    assert sac["seeds"] == [0, 1, 2]
+    assert sac["trained_success"]["mean"] == pytest.approx(0.8)
+    low, high = sac["trained_success"]["interval"]
+    assert 0.6 <= low < 0.8 < high <= 1.0
+    assert sac["unseen_success"]["mean"] == pytest.approx(0.2)  # (0.4 + 0) / 2 over seeds
+    assert sac["unseen_spilled"]["mean"] == pytest.approx(2.0)
+    assert sac["wall_minutes"] == [10.0, 20.0, 30.0]
+    assert rows["ppo"]["trained_success"]["interval"] is None  # one seed: no interval
+    text = paths["report"].read_text()
+    assert "| Pour-v1 | SAC | features | reward | 3 | 0.80 [" in text
+    assert paths["curves"].is_file() and "(b/curves.png)" in text
+    # Regenerated from the summaries alone, the same report.
+    baselines_report([], **paths)
+    assert paths["report"].read_text() == text
+    with pytest.raises(InputError, match=r"no finished train\.py run"):
+        baselines_report([tmp_path / "sum"], **paths)
+
+
+def test_intervals_and_kinds():
+    assert interval([0.5]) is None and interval([0.3, 0.3]) == (0.3, 0.3)
+    low, high = interval([0.0, 1.0, 1.0, 1.0])
+    assert 0.0 <= low < np.mean([0.0, 1.0, 1.0, 1.0]) < high <= 1.0
+    assert training_kind({"demonstrations": None}) == "reward"
+    clone = {"demonstrations": {"episodes": 5}, "hyperparameters": {"gradient_steps": 0}}
+    assert training_kind(clone) == "clone"
+    clone["hyperparameters"]["gradient_steps"] = 1
+    assert training_kind(clone) == "clone + RL"
