@@ -131,12 +131,12 @@ def _group_key(s: dict) -> tuple[str, str, str, str]:
     return (s["env"], s["algo"], s["obs_mode"], s["kind"])
 
 
-def _cell(values: list[float | None], digits: int) -> str:
-    present = [v for v in values if v is not None]
-    if not present:
+def _cell(stat: dict, digits: int) -> str:
+    """A metric's mean over seeds with its interval, as the report prints it."""
+    if stat["mean"] is None:
         return "-"
-    text = f"{np.mean(present):.{digits}f}"
-    ci = interval(present)
+    ci = stat["interval"]
+    text = f"{stat['mean']:.{digits}f}"
     return text + (f" [{ci[0]:.{digits}f}, {ci[1]:.{digits}f}]" if ci else "")
 
 
@@ -245,7 +245,7 @@ def baselines_report(
             present = [v for v in values if v is not None]
             row[name] = {"mean": float(np.mean(present)) if present else None,
                          "interval": interval(present)}  # fmt: skip
-            cells.append(_cell(values, 2 if "success" in name else 1))
+            cells.append(_cell(row[name], 2 if "success" in name else 1))
         wall = [s["wall_seconds"] / 60 for s in group if s["wall_seconds"] is not None]
         steps = sorted({s["timesteps"] for s in group})
         row.update(timesteps=steps, wall_minutes=wall)
