@@ -12,6 +12,7 @@ from __future__ import annotations
 import itertools
 import sys
 from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
 
 import numpy as np
 from tqdm import tqdm
@@ -19,6 +20,70 @@ from tqdm import tqdm
 from pour_gym.agents.rollout import rollout
 from pour_gym.envs import make, mean_metrics, task_of
 from pour_gym.report.tables import markdown_table
+
+
+@dataclass
+class LoadedPolicy:
+    """A policy ready to evaluate, with the environment it acts in.
+
+    Attributes:
+        policy: observation -> action.
+        env_id: the environment id it acts in.
+        env_kwargs: the environment arguments it needs (a model's observation mode, ...).
+        trained_on: the containers it was trained (or searched) on.
+    """
+
+    policy: Callable[[np.ndarray], np.ndarray]
+    env_id: str
+    env_kwargs: dict = field(default_factory=dict)
+    trained_on: list[str] = field(default_factory=list)
+
+
+def load_policy(name: str, env_id: str | None = None, algo: str | None = None) -> LoadedPolicy:
+    """A policy by name: ``"scripted"``, a policy search's ``search.json``, or a model.
+
+    Args:
+        name: ``"scripted"``, a ``search.json``, a shipped model's name
+            (``pour-v0-red-cup-features``) or a ``model.zip``.
+        env_id: the environment (default: the model's, or Pour-v0 for the scripted ones).
+        algo: the algorithm of a model without a ``config.json``.
+
+    Raises:
+        InputError: an unknown policy, a scripted policy for an env that does not pour, or
+            a model asked to act in another env than it was trained on.
+    """
+    from pour_gym.agents.rollout import sb3_policy
+    from pour_gym.envs import POUR_V0
+    from pour_gym.errors import InputError
+
+    if name == "scripted" or name.endswith(".json"):
+        from pour_gym.agents.scripted import ScriptedPourPolicy, tilt_settings
+        from pour_gym.agents.search import load_search
+
+        env_id = env_id or POUR_V0
+        try:
+            pours = task_of(env_id).pours
+        except ValueError as exc:
+            raise InputError(str(exc)) from None
+        if not pours:
+            raise InputError(
+                f"the scripted policy pours from a source into a target, not in {env_id}"
+            )
+        tilt = tilt_settings(env_id)
+        if name == "scripted":
+            return LoadedPolicy(ScriptedPourPolicy(**tilt), env_id)
+        found = load_search(name)  # the best of a policy search, on the containers it searched
+        return LoadedPolicy(
+            ScriptedPourPolicy(**found["best"], **tilt), env_id,
+            trained_on=list(found.get("sources", [])),
+        )  # fmt: skip
+    from pour_gym.agents.training import load_run
+
+    run = load_run(name, algo)
+    env_id = env_id or run.config.get("env") or POUR_V0
+    if run.config.get("env") and run.config["env"] != env_id:
+        raise InputError(f"the model was trained on {run.config['env']}, not {env_id}")
+    return LoadedPolicy(sb3_policy(run), env_id, run.env_kwargs(), run.trained_on())
 
 
 def evaluate_policy(

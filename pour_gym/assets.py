@@ -21,6 +21,7 @@ The repository's top-level ``assets/`` folder is installed as the package
 from __future__ import annotations
 
 import json
+import re
 import time
 from dataclasses import dataclass
 from importlib.resources import files
@@ -33,7 +34,7 @@ from pour_gym.errors import ClosedContainerError, InputError, NoWaterError
 from pour_gym.features import ContainerGeometry, container_cavity, container_geometry
 from pour_gym.mesh.fileio import MESH_SUFFIXES, load_mesh, validate_mesh
 from pour_gym.mesh.measure import opening_problem
-from pour_gym.objects import OBJECT_NAMES, ContainerModel, build_object
+from pour_gym.objects import OBJECT_NAMES, ContainerModel, ObjectSpec, build_object, procedural
 from pour_gym.parts import PART_NAMES, Part
 from pour_gym.report.tables import markdown_table
 from pour_gym.warp.frame import canonical_frame
@@ -80,17 +81,18 @@ def resolve_target(target: str | Path | trimesh.Trimesh, scale: float = 1.0):
     """A labelling target as (name, mesh, ground-truth model or None).
 
     Args:
-        target: a catalogue name, a mesh file, or a mesh.
+        target: a catalogue name, a procedural member (``procedural:test#7``), a mesh
+            file, or a mesh.
         scale: factor to metres for mesh files.
 
     Raises:
-        InputError: neither a catalogue name nor a readable mesh.
+        InputError: neither a catalogue name, a procedural member nor a readable mesh.
     """
     if isinstance(target, trimesh.Trimesh):
         return "mesh", target, None
     name = str(target)
-    if name in OBJECT_NAMES:
-        model = build_object(name)
+    if name in OBJECT_NAMES or procedural.is_member(name):
+        model = build_object(name) if name in OBJECT_NAMES else procedural.build_member(name)
         return name, model.mesh, model
     if name in (PYBULLET_MUG, *REAL_MESHES):
         return name, load_mesh(real_mesh_path(name)), None
@@ -260,10 +262,13 @@ def label_container(
         "seconds": time.perf_counter() - t0,
     }
     if truth is not None:
-        # The catalogue meshes are built upright with the handle along +x, so the
-        # canonical frame is the identity up to a shift: labels compare vertex by vertex.
+        # The built meshes are upright with the handle along +x and the canonical frame
+        # keeps the vertices' order: labels compare vertex by vertex.
         meta["iou"] = part_iou(labels, truth.labels)
-        meta["tables"] = _table_rows(truth, geometry)
+        if isinstance(truth.spec, ObjectSpec):
+            meta["tables"] = _table_rows(truth, geometry)
+        else:
+            meta["procedural"] = truth.spec.to_dict()
     return LabelledAsset(name=name, mesh=placed, labels=labels, geometry=geometry, meta=meta)
 
 
@@ -363,8 +368,10 @@ def expand_containers(spec: str | Path | list | tuple) -> tuple[str, ...]:
     """Container names or paths from a split name, a name, a path, or a list of them.
 
     Args:
-        spec: ``"train"``, ``"test"``, ``"all"``, ``"real"``, a catalogue name, an asset
-            directory, a mesh file, a comma-separated string or a list of the last three.
+        spec: ``"train"``, ``"test"``, ``"all"``, ``"real"``, a procedural family
+            (``"procedural:test"``, see :mod:`pour_gym.objects.procedural`), a catalogue
+            name, a procedural member, an asset directory, a mesh file, a comma-separated
+            string or a list of them.
 
     Returns:
         The containers, in order, as strings.
@@ -379,8 +386,9 @@ def expand_containers(spec: str | Path | list | tuple) -> tuple[str, ...]:
         # "a,b,c" lists containers (unless it is the name of an existing file).
         spec = s.split(",") if "," in s and not Path(s).exists() else [s]
     items: tuple[str, ...] = ()
-    for x in spec:  # a split inside a list stands for its containers
-        items += SPLITS.get(str(x), (str(x),))
+    for x in spec:  # a split or a family inside a list stands for its containers
+        x = str(x)
+        items += procedural.family_members(x) if procedural.is_family(x) else SPLITS.get(x, (x,))
     items = tuple(dict.fromkeys(items))
     if not items:
         raise InputError("no containers given; use a split (train, test, all, real) or names")
@@ -388,8 +396,12 @@ def expand_containers(spec: str | Path | list | tuple) -> tuple[str, ...]:
         p = Path(item)
         if item in CATALOGUE or p.is_dir() or (p.is_file() and p.suffix.lower() in MESH_SUFFIXES):
             continue
+        if item.startswith(procedural.PREFIX):
+            procedural.member_spec(item)  # an InputError naming what is wrong with it
+            continue
         raise InputError(
-            f"{item!r} is not a container: use a split ({', '.join(SPLITS)}), a catalogue "
+            f"{item!r} is not a container: use a split ({', '.join(SPLITS)}), a procedural "
+            f"family (procedural:train, procedural:test, procedural:N@SEED), a catalogue "
             f"name ({', '.join(CATALOGUE)}), an asset directory or a mesh file "
             f"({', '.join(MESH_SUFFIXES)})"
         )
@@ -397,32 +409,40 @@ def expand_containers(spec: str | Path | list | tuple) -> tuple[str, ...]:
 
 
 def resolve_asset(spec: str | Path, cache_dir: str | Path | None = None) -> LabelledAsset:
-    """A labelled asset from a catalogue name, an asset directory or a user's mesh file.
+    """A labelled asset from a catalogue name, asset directory, procedural member or mesh file.
 
-    A mesh file is labelled by warping the red cup onto it (about a second for 20k
-    vertices); the result is cached under ``cache_dir`` by the file's content, so the next
-    call loads it.
+    A mesh file or a procedural member (``procedural:test#7``) is labelled by warping the
+    red cup onto it (about a second for 20k vertices); the result is cached under
+    ``cache_dir`` by the file's content (a member: by its name and the generator's
+    version), so the next call loads it.
 
     Args:
-        spec: catalogue name, asset directory, or mesh file (in m, any pose).
+        spec: catalogue name, asset directory, procedural member, or mesh file (in m, any
+            pose).
         cache_dir: where labelled user meshes are kept (default: the user cache).
 
     Raises:
         InputError: not a container, or a mesh that cannot be labelled.
     """
+    import hashlib
+
     s = str(spec)
     p = Path(s)
     if s in CATALOGUE or p.is_dir():
         return load_asset(s)
-    if not p.is_file():
-        raise InputError(f"no container {s!r}: not a catalogue name, asset directory or file")
-    import hashlib
-
+    if procedural.is_member(s):
+        key = f"{s} g{procedural.GENERATOR_VERSION} v{LABELLING_VERSION}".encode()
+        stem = re.sub(r"[^A-Za-z0-9]+", "_", s)
+    elif p.is_file():
+        key, stem = p.read_bytes() + f"v{LABELLING_VERSION}".encode(), p.stem
+    else:
+        raise InputError(
+            f"no container {s!r}: not a catalogue name, procedural member, asset directory or file"
+        )
     from pour_gym.io.cache import cache_dir as user_cache
 
-    digest = hashlib.sha256(p.read_bytes() + f"v{LABELLING_VERSION}".encode()).hexdigest()[:16]
     root = Path(cache_dir) if cache_dir is not None else user_cache("assets")
-    target = root / f"{p.stem}_{digest}"
+    target = root / f"{stem}_{hashlib.sha256(key).hexdigest()[:16]}"
     if not (target / "meta.json").is_file():
         import os
         import shutil
@@ -430,7 +450,7 @@ def resolve_asset(spec: str | Path, cache_dir: str | Path | None = None) -> Labe
         # Written aside and renamed, so that environments in parallel processes never
         # read a half-written asset.
         tmp = root / f".{target.name}.{os.getpid()}"
-        write_asset(label_container(p), tmp, picture=False)
+        write_asset(label_container(s), tmp, picture=False)
         try:
             tmp.rename(target)
         except OSError:  # another process got there first

@@ -47,8 +47,24 @@ def build_parser() -> argparse.ArgumentParser:
         p.set_defaults(func=func)
         return p
 
-    p = add("objects", commands.cmd_objects, "list the thesis objects and their real dimensions")
-    p.add_argument("--png", help="also draw all of them, labelled, into this PNG")
+    p = add(
+        "objects",
+        commands.cmd_objects,
+        "list the thesis objects (or a procedural family) and their dimensions",
+    )
+    p.add_argument("--png", help="also draw them, labelled, into this PNG")
+    p.add_argument(
+        "--procedural",
+        metavar="FAMILY",
+        help="a procedural family instead: procedural:train, procedural:test or "
+        "procedural:N@SEED (each member built and checked watertight)",
+    )
+    p.add_argument(
+        "--sheet", type=int, default=50, help="--procedural --png: draw the first N members"
+    )
+    p.add_argument(
+        "--out", help="--procedural: write each member as a labelled asset (warped) under DIR"
+    )
 
     p = add("scan", commands.cmd_scan, "simulated turntable depth scan of an object or mesh file")
     p.add_argument("source", help="catalogue container or mesh file (OBJ/STL/PLY/GLB)")
@@ -88,6 +104,23 @@ def build_parser() -> argparse.ArgumentParser:
         help="generalisation, baselines: train.py run directories or folders of them",
     )  # fmt: skip
     p.add_argument("--out", help="generalisation: folder for report.md and plots")
+    p.add_argument(
+        "--family",
+        help="warping, generalisation: over a procedural family (procedural:test), results "
+        "per shape-parameter bucket",
+    )
+    p.add_argument(
+        "--policies",
+        default="scripted,pour-v0-red-cup-features",
+        help="generalisation --family: comma-separated policies (scripted, shipped models, "
+        "model files)",
+    )
+    p.add_argument(
+        "--episodes", type=int, default=2, help="generalisation --family: episodes per container"
+    )
+    p.add_argument(
+        "--seed", type=int, default=60_000, help="generalisation --family: first episode's seed"
+    )
 
     p = add(
         "label",

@@ -12,7 +12,6 @@ import sys
 from collections.abc import Callable
 from pathlib import Path
 
-from pour_gym.envs import POUR_V0, task_of
 from pour_gym.errors import ClosedContainerError, InputError
 from pour_gym.report.tables import text_table
 
@@ -21,8 +20,13 @@ Output = tuple[object, Callable[[], str]]
 
 
 def cmd_objects(args: argparse.Namespace) -> Output:
-    """List the thesis objects with their real dimensions."""
+    """List the thesis objects with their real dimensions (or a procedural family)."""
     from pour_gym.objects import SPECS
+
+    if args.procedural:
+        return _procedural_family(args)
+    if args.out:
+        raise InputError("--out writes a procedural family's assets: add --procedural FAMILY")
 
     doc = [
         {
@@ -54,6 +58,63 @@ def cmd_objects(args: argparse.Namespace) -> Output:
             for d in doc
         ]
         return text_table(rows, ["name", "height cm", "rim radius cm", "volume ml", "handle"])
+
+    return (doc, text)
+
+
+def _procedural_family(args: argparse.Namespace) -> Output:
+    """Build every member of a procedural family; draw a sheet, write assets if asked."""
+    from tqdm import tqdm
+
+    from pour_gym.objects.procedural import build_member, family_members
+
+    names = family_members(args.procedural)
+    doc, models = [], {}
+    for name in tqdm(names, desc=f"build {args.procedural}", file=sys.stderr):
+        model = build_member(name)
+        s = model.spec
+        doc.append(
+            {
+                **s.to_dict(),
+                "volume": model.cavity_volume,
+                "watertight": bool(model.mesh.is_watertight),
+                "vertices": len(model.mesh.vertices),
+            }
+        )
+        if len(models) < args.sheet:
+            models[name] = model
+    if args.png:
+        from pour_gym.report.pictures import render_gallery
+
+        panels = [
+            (f"{n.split('#')[1]} {m.spec.profile}", m.mesh, m.labels) for n, m in models.items()
+        ]
+        render_gallery(panels, args.png, columns=10, dpi=50)
+    if args.out:
+        from pour_gym.assets import label_container, write_asset
+
+        for name in tqdm(names, desc="label and write", file=sys.stderr):
+            stem = name.removeprefix("procedural:").replace("#", "_").replace("@", "_")
+            write_asset(label_container(name), Path(args.out) / stem, picture=False)
+
+    def text() -> str:
+        rows = [
+            [
+                d["name"],
+                d["profile"],
+                d["cross_section"],
+                d["lip"],
+                "yes" if d["handle"] else "no",
+                f"{d['height'] * 100:.1f}",
+                f"{d['rim_radius'] * 100:.1f}",
+                f"{d['volume'] * 1e6:.0f}",
+                "yes" if d["watertight"] else "NO",
+            ]
+            for d in doc
+        ]
+        header = ["name", "profile", "section", "lip", "handle", "height cm", "rim cm",
+                  "volume ml", "watertight"]  # fmt: skip
+        return text_table(rows, header)
 
     return (doc, text)
 
@@ -144,6 +205,17 @@ def cmd_report(args: argparse.Namespace) -> Output:
     from pour_gym.mesh.modelgen import generate_model, reconstruction_table
     from pour_gym.objects import OBJECT_NAMES
 
+    if args.family and args.what not in ("warping", "generalisation"):
+        raise InputError("--family is for report warping and report generalisation")
+    if args.what == "generalisation" and args.family:
+        from pour_gym.agents.family_study import family_study, write_family_study
+
+        if not args.out:
+            raise InputError("report generalisation --family needs --out DIR")
+        policies = [name for name in args.policies.split(",") if name]
+        doc = family_study(args.family, policies, args.episodes, args.seed)
+        out = write_family_study(doc, args.out)
+        return (doc, lambda: (out / "report.md").read_text())
     if args.what == "baselines":
         from pour_gym.agents.baselines import REPORT, baselines_report
 
@@ -153,9 +225,16 @@ def cmd_report(args: argparse.Namespace) -> Output:
         from pour_gym.agents.study import study_report
 
         if not args.runs or not args.out:
-            raise InputError("report generalisation needs --runs DIR and --out DIR")
+            raise InputError(
+                "report generalisation needs --runs DIR and --out DIR (or --family FAMILY)"
+            )
         summary = study_report(args.runs, args.out)
         return (summary, lambda: (Path(args.out) / "report.md").read_text())
+    if args.what == "warping" and args.family:
+        from pour_gym.agents.family_study import family_warping, family_warping_report
+
+        doc = family_warping(args.family)
+        return (doc, lambda: family_warping_report(doc))
     if args.what == "warping":
         from pour_gym.assets import label_container, warping_tables
 
@@ -342,38 +421,12 @@ def cmd_experiment(args: argparse.Namespace) -> Output:
 
 def cmd_evaluate(args: argparse.Namespace) -> Output:
     """Evaluate a trained model, the scripted policy or a searched one on the containers."""
-    from pour_gym.agents.evaluate import evaluate_policy, evaluation_table
-    from pour_gym.agents.rollout import sb3_policy
+    from pour_gym.agents.evaluate import evaluate_policy, evaluation_table, load_policy
     from pour_gym.assets import expand_containers
 
-    env_kwargs: dict = {}
-    trained: list[str] = []
-    if args.policy == "scripted" or args.policy.endswith(".json"):
-        args.env = args.env or POUR_V0
-        from pour_gym.agents.scripted import ScriptedPourPolicy, tilt_settings
-        from pour_gym.agents.search import load_search
-
-        if not _pours(args.env):
-            raise InputError(
-                f"the scripted policy pours from a source into a target, not in {args.env}"
-            )
-        tilt = tilt_settings(args.env)
-        if args.policy == "scripted":
-            policy = ScriptedPourPolicy(**tilt)
-        else:  # the best of a policy search, trained on the containers it searched on
-            found = load_search(args.policy)
-            policy = ScriptedPourPolicy(**found["best"], **tilt)
-            trained = found.get("sources", [])
-    else:
-        from pour_gym.agents.training import load_run
-
-        run = load_run(args.policy, args.algo)
-        args.env = args.env or run.config.get("env") or POUR_V0
-        if run.config.get("env") and run.config["env"] != args.env:
-            raise InputError(f"the model was trained on {run.config['env']}, not {args.env}")
-        policy = sb3_policy(run)
-        env_kwargs = run.env_kwargs()
-        trained = run.trained_on()
+    loaded = load_policy(args.policy, args.env, args.algo)
+    policy, env_kwargs, trained = loaded.policy, loaded.env_kwargs, loaded.trained_on
+    args.env = loaded.env_id
     result = evaluate_policy(
         policy,
         args.env,
@@ -496,11 +549,3 @@ def cmd_episode(args: argparse.Namespace) -> Output:
         Path(args.out), args.env, args.source, args.target, args.seed, args.target_amount
     )
     return ({"info": episode["info"], "video": episode["video"]}, lambda: episode["text"])
-
-
-def _pours(env_id: str) -> bool:
-    """Whether an env id's task pours from a source into a target (InputError if unknown)."""
-    try:
-        return task_of(env_id).pours
-    except ValueError as exc:
-        raise InputError(str(exc)) from None

@@ -1,18 +1,20 @@
-"""Parametric, watertight meshes of the thesis objects with ground-truth part labels.
+"""Parametric, watertight meshes of containers with ground-truth part labels.
 
 A container is a solid of revolution: a closed cross-section in the (r, z) half-plane,
-made of the base, the outer wall, a round lip and the inner wall, revolved about the z
-axis. The inner wall is the curve ``r(s) = a + (b - a) s^p`` and the outer wall is that
-curve offset by the wall thickness along its normal, so the wall is equally thick
-everywhere. A square bowl scales each ring by a superellipse. A cup gets a D-shaped tube as
-handle, joined to the body by a boolean union (manifold3d), so the result stays one
-watertight solid.
+made of the base, the outer wall, a lip (round, flat or rolled) and the inner wall,
+revolved about the z axis. The inner wall is the curve ``r(s) = a + (b - a) s^p + bulge
+sin(pi s)`` and the outer wall is that curve offset by the wall thickness along its
+normal, so the wall is equally thick everywhere. A square bowl or an oval scales each ring
+by a superellipse. A cup gets a D-shaped tube as handle, joined to the body by a boolean
+union (manifold3d), so the result stays one watertight solid.
 
-The radii ``a`` (bottom of the cavity) and ``b`` (top of the inner wall) and the height of
-the lip are solved so that the mesh has the thesis's real height, rim radius and volume:
-height is the lip's top above the base, rim radius the mean distance of the rim vertices to
-their centre, volume what the cavity holds up to the top of the lip. The volume is computed
-exactly for the faceted mesh (each slab between two rings is a frustum of a polygon).
+For a thesis object the radii ``a`` (bottom of the cavity) and ``b`` (top of the inner
+wall) and the height of the lip are solved so that the mesh has the thesis's real height,
+rim radius and volume: height is the lip's top above the base, rim radius the mean
+distance of the rim vertices to their centre, volume what the cavity holds up to the top
+of the lip. The volume is computed exactly for the faceted mesh (each slab between two
+rings is a frustum of a polygon). The procedural family
+(:mod:`pour_gym.objects.procedural`) gives them directly.
 
 Units are metres; z is up and the base rests on z = 0; the handle points along +x.
 """
@@ -20,6 +22,7 @@ Units are metres; z is up and the base rests on z = 0; the handle points along +
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 import trimesh
@@ -30,6 +33,9 @@ from pour_gym.errors import InputError
 from pour_gym.objects.catalogue import ObjectSpec, get_spec
 from pour_gym.parts import Part
 
+if TYPE_CHECKING:
+    from pour_gym.objects.procedural import ProceduralSpec
+
 # Angular resolution of the rings and spacing of profile points along the cross-section:
 # about 10k vertices per cup, close to the thesis's marching-cubes meshes.
 N_THETA = 96
@@ -39,6 +45,65 @@ HANDLE_TUBE_RADIUS = 0.0045  # m
 HANDLE_REACH = 0.026  # m, how far the handle stands off the wall
 HANDLE_SPAN = (0.30, 0.80)  # lower and upper attachment, as fractions of the height
 HANDLE_SIDES = 20
+
+
+@dataclass(frozen=True)
+class Shape:
+    """What the builder reads of a container: wall, base, profile, cross-section, lip, handle.
+
+    A thesis object's :class:`~pour_gym.objects.catalogue.ObjectSpec` gives one
+    (:func:`shape_of`); the procedural family (:mod:`pour_gym.objects.procedural`) draws
+    them. Lengths in m.
+
+    Attributes:
+        name: the container's name (in error messages).
+        height: the lip's top above the base.
+        wall: wall thickness, along the wall's normal.
+        base: thickness of the base (at least the wall's).
+        flare: exponent p of the inner wall ``r(s) = a + (b - a) s^p + bulge sin(pi s)``
+            over the normalised height s (1: a straight taper; below 1: a bowl).
+        bulge: the belly added halfway up the inner wall.
+        squareness: exponent n of the superellipse ``|x|^n + |y / aspect|^n = 1`` of the
+            cross-section, or None for an ellipse (a circle when ``aspect`` is 1).
+        aspect: the cross-section's y semi-axis over its x semi-axis (1: round).
+        lip: ``"round"`` (a half circle across the wall), ``"flat"`` (cut square) or
+            ``"rolled"`` (a bead that stands out of the wall by ``bead``).
+        bead: how far a rolled lip stands out, m.
+        handle: whether there is a handle (a D-shaped tube along +x).
+        handle_span: its lower and upper attachment, as fractions of the height.
+        handle_reach: how far it stands off the wall.
+    """
+
+    name: str
+    height: float
+    wall: float
+    base: float
+    flare: float = 1.0
+    bulge: float = 0.0
+    squareness: float | None = None
+    aspect: float = 1.0
+    lip: str = "round"
+    bead: float = 0.0
+    handle: bool = False
+    handle_span: tuple[float, float] = HANDLE_SPAN
+    handle_reach: float = HANDLE_REACH
+
+    def ring_scale(self, n_theta: int = N_THETA) -> np.ndarray:
+        """Radial scale of each of the ``n_theta`` rings of the mesh (:func:`ring_scale`)."""
+        return ring_scale(self.squareness, n_theta, self.aspect)
+
+
+def shape_of(spec: ObjectSpec) -> Shape:
+    """The builder's :class:`Shape` of a thesis object."""
+    return Shape(
+        name=spec.name,
+        height=spec.height,
+        wall=spec.wall,
+        base=spec.base,
+        flare=spec.flare,
+        squareness=spec.squareness,
+        handle=spec.handle,
+    )
 
 
 @dataclass
@@ -64,10 +129,11 @@ class Profile:
 
 @dataclass
 class ContainerModel:
-    """A thesis object: its mesh, per-vertex ground-truth labels and exact geometry.
+    """A built container: its mesh, per-vertex ground-truth labels and exact geometry.
 
     Attributes:
-        spec: the catalogue entry it was built from.
+        spec: what it was built from: a thesis object's catalogue entry, or a procedural
+            family member's :class:`~pour_gym.objects.procedural.ProceduralSpec`.
         mesh: the watertight solid, in m, base on z = 0.
         labels: (V,) int8 part of each vertex of ``mesh`` (see :class:`pour_gym.parts.Part`).
         cavity_volume: what the container holds up to the top of its lip, in m^3, exact for
@@ -76,7 +142,7 @@ class ContainerModel:
         ring_scale: (N_THETA,) radial scale of each ring (all ones for a round container).
     """
 
-    spec: ObjectSpec
+    spec: ObjectSpec | ProceduralSpec
     mesh: trimesh.Trimesh
     labels: np.ndarray
     cavity_volume: float
@@ -92,26 +158,33 @@ class ContainerModel:
         return _revolve(self.profile.cavity, self.ring_scale, close_top=True)
 
 
-def superellipse_scale(theta: np.ndarray, squareness: float | None) -> np.ndarray:
-    """Radial scale of the superellipse ``|x|^n + |y|^n = 1`` at the angles ``theta``.
+def superellipse_scale(
+    theta: np.ndarray, squareness: float | None, aspect: float = 1.0
+) -> np.ndarray:
+    """Radial scale of the superellipse ``|x|^n + |y / aspect|^n = 1`` at the angles ``theta``.
 
     Args:
         theta: angles about the z axis, in rad.
-        squareness: the exponent n, or ``None`` for a circle.
+        squareness: the exponent n, or ``None`` for an ellipse (n = 2).
+        aspect: the y semi-axis over the x semi-axis.
 
     Returns:
         Scale factors of the same shape as ``theta``, all 1 for a circle.
     """
     theta = np.asarray(theta, dtype=float)
-    if squareness is None:
+    if squareness is None and aspect == 1.0:
         return np.ones_like(theta)
+    n = 2.0 if squareness is None else squareness
     c, s = np.abs(np.cos(theta)), np.abs(np.sin(theta))
-    return (c**squareness + s**squareness) ** (-1.0 / squareness)
+    if aspect != 1.0:
+        s = s / aspect
+    return (c**n + s**n) ** (-1.0 / n)
 
 
-def ring_scale(squareness: float | None, n_theta: int = N_THETA) -> np.ndarray:
+def ring_scale(squareness: float | None, n_theta: int = N_THETA, aspect: float = 1.0) -> np.ndarray:
     """Radial scale of each of the ``n_theta`` rings of the mesh."""
-    return superellipse_scale(np.linspace(0.0, 2.0 * np.pi, n_theta, endpoint=False), squareness)
+    theta = np.linspace(0.0, 2.0 * np.pi, n_theta, endpoint=False)
+    return superellipse_scale(theta, squareness, aspect)
 
 
 def _resample(curve: np.ndarray, step: float) -> np.ndarray:
@@ -130,12 +203,17 @@ def _segment(p0: tuple[float, float], p1: tuple[float, float], step: float) -> n
     return (1.0 - t) * np.asarray(p0) + t * np.asarray(p1)
 
 
-def _inner_wall(a: float, b: float, z0: float, z1: float, flare: float) -> tuple[np.ndarray, ...]:
+def _inner_wall(
+    a: float, b: float, z0: float, z1: float, flare: float, bulge: float = 0.0
+) -> tuple[np.ndarray, ...]:
     """Dense inner wall curve and its outward unit normals in the (r, z) plane."""
     # s = u^2 resolves the steep start of a bowl's profile (flare < 1) without a kink.
     u = np.linspace(0.0, 1.0, 2001)
     s = u**2
-    curve = np.column_stack([a + (b - a) * s**flare, z0 + s * (z1 - z0)])
+    r = a + (b - a) * s**flare
+    if bulge:
+        r = r + bulge * np.sin(np.pi * s)
+    curve = np.column_stack([r, z0 + s * (z1 - z0)])
     tangent = np.gradient(curve, u, axis=0)
     # At u = 0 the derivative in u vanishes; the direction of the first chord serves.
     tangent[0] = curve[1] - curve[0]
@@ -144,17 +222,8 @@ def _inner_wall(a: float, b: float, z0: float, z1: float, flare: float) -> tuple
     return curve, normal
 
 
-def _profile(spec: ObjectSpec, a: float, b: float, top: float) -> Profile:
-    """Cross-section for cavity bottom radius a, inner-wall top radius b and height top."""
-    t = spec.wall
-    inner, normal = _inner_wall(a, b, spec.base, top, spec.flare)
-    outer_dense = inner + t * normal
-    if outer_dense[0, 1] < 0.0:
-        raise InputError(f"{spec.name}: the base ({spec.base} m) is thinner than the wall")
-    inner_pts = _resample(inner, PROFILE_STEP)
-    outer_pts = _resample(outer_dense, PROFILE_STEP)
-
-    o_top, i_top = outer_pts[-1], inner_pts[-1]
+def _lip(o_top: np.ndarray, i_top: np.ndarray, shape: Shape) -> np.ndarray:
+    """The lip's (r, z) points from the outer wall's top over to the inner wall's top."""
     mid = 0.5 * (o_top + i_top)
     rho = 0.5 * np.linalg.norm(i_top - o_top)
     d = (i_top - o_top) / (2.0 * rho)
@@ -162,12 +231,34 @@ def _profile(spec: ObjectSpec, a: float, b: float, top: float) -> Profile:
     if up[1] < 0.0:
         up = -up
     phi = np.linspace(0.0, np.pi, LIP_POINTS)
-    lip = mid - rho * np.cos(phi)[:, None] * d + rho * np.sin(phi)[:, None] * up
+    if shape.lip == "round":
+        return mid - rho * np.cos(phi)[:, None] * d + rho * np.sin(phi)[:, None] * up
+    if shape.lip == "flat":
+        return _segment(tuple(o_top), tuple(i_top), 2.0 * rho / (LIP_POINTS - 1))
+    if shape.lip == "rolled":
+        # Half an ellipse through both tops that stands out of the wall (-d) by ``bead``
+        # and above the round lip's top by as much: a bead thicker than the wall.
+        out = (rho * np.cos(phi) + shape.bead * np.sin(phi))[:, None] * d
+        return mid - out + (rho + shape.bead) * np.sin(phi)[:, None] * up
+    raise InputError(f"{shape.name}: unknown lip {shape.lip!r}; use round, flat or rolled")
+
+
+def _profile(shape: Shape, a: float, b: float, top: float) -> Profile:
+    """Cross-section for cavity bottom radius a, inner-wall top radius b and height top."""
+    t = shape.wall
+    inner, normal = _inner_wall(a, b, shape.base, top, shape.flare, shape.bulge)
+    outer_dense = inner + t * normal
+    if outer_dense[0, 1] < 0.0:
+        raise InputError(f"{shape.name}: the base ({shape.base} m) is thinner than the wall")
+    inner_pts = _resample(inner, PROFILE_STEP)
+    outer_pts = _resample(outer_dense, PROFILE_STEP)
+
+    lip = _lip(outer_pts[-1], inner_pts[-1], shape)
 
     foot_r, foot_z = outer_pts[0]
     base = _segment((0.0, 0.0), (foot_r, 0.0), PROFILE_STEP)
     foot = _segment((foot_r, 0.0), (foot_r, foot_z), PROFILE_STEP)[1:-1]
-    floor = _segment((a, spec.base), (0.0, spec.base), PROFILE_STEP)[1:]
+    floor = _segment((a, shape.base), (0.0, shape.base), PROFILE_STEP)[1:]
     parts = [
         (base, Part.OUTSIDE),
         (foot, Part.OUTSIDE),
@@ -220,13 +311,14 @@ def solve_profile(spec: ObjectSpec, scale: np.ndarray) -> tuple[Profile, float]:
     Raises:
         InputError: no cavity with a positive floor radius has the requested volume.
     """
+    shape = shape_of(spec)
     b = spec.rim_radius / float(scale.mean()) - spec.wall / 2.0
     top = spec.height - spec.wall / 2.0
     profile = None
     for _ in range(6):  # the three conditions are nearly decoupled: a fixed point converges
 
         def volume_error(a: float, b: float = b, top: float = top) -> float:
-            return _cavity_volume(_profile(spec, a, b, top).cavity, scale) - spec.volume
+            return _cavity_volume(_profile(shape, a, b, top).cavity, scale) - spec.volume
 
         lo, hi = 0.05 * b, 2.0 * b
         if volume_error(lo) > 0.0 or volume_error(hi) < 0.0:
@@ -235,7 +327,7 @@ def solve_profile(spec: ObjectSpec, scale: np.ndarray) -> tuple[Profile, float]:
                 f"{spec.rim_radius} m holds {spec.volume} m^3 with flare {spec.flare}"
             )
         a = brentq(volume_error, lo, hi, xtol=1e-9)
-        profile = _profile(spec, a, b, top)
+        profile = _profile(shape, a, b, top)
         radius, _ = _rim_stats(profile, scale)
         apex = float(profile.points[:, 1].max())
         b += (spec.rim_radius - radius) / float(scale.mean())
@@ -276,11 +368,11 @@ def _revolve(curve: np.ndarray, scale: np.ndarray, close_top: bool = False) -> t
     return mesh
 
 
-def _handle(spec: ObjectSpec, outer: np.ndarray) -> trimesh.Trimesh:
+def _handle(shape: Shape, outer: np.ndarray) -> trimesh.Trimesh:
     """A D-shaped tube along +x whose ends sit in the middle of the wall."""
-    lo, hi = (f * spec.height for f in HANDLE_SPAN)
+    lo, hi = (f * shape.height for f in shape.handle_span)
     r_at = np.interp([lo, hi], outer[:, 1], outer[:, 0])
-    inset = spec.wall / 2.0
+    inset = shape.wall / 2.0
     start = np.array([r_at[1] - inset, hi])
     end = np.array([r_at[0] - inset, lo])
     stand = HANDLE_TUBE_RADIUS + 0.002
@@ -291,7 +383,7 @@ def _handle(spec: ObjectSpec, outer: np.ndarray) -> trimesh.Trimesh:
     w = (np.sin(phi) + 1.0) / 2.0
     bow = np.column_stack(
         [
-            w * p1[0] + (1 - w) * p2[0] + HANDLE_REACH * np.cos(phi),
+            w * p1[0] + (1 - w) * p2[0] + shape.handle_reach * np.cos(phi),
             (hi + lo) / 2 + (hi - lo) / 2 * np.sin(phi),
         ]
     )
@@ -326,16 +418,15 @@ def _handle(spec: ObjectSpec, outer: np.ndarray) -> trimesh.Trimesh:
     return tube
 
 
-def _label_vertices(
-    vertices: np.ndarray, profile: Profile, squareness: float | None, has_handle: bool
-) -> np.ndarray:
+def _label_vertices(vertices: np.ndarray, profile: Profile, shape: Shape) -> np.ndarray:
     """Ground-truth part of each vertex from its position relative to the profile."""
     theta = np.arctan2(vertices[:, 1], vertices[:, 0])
-    r = np.hypot(vertices[:, 0], vertices[:, 1]) / superellipse_scale(theta, squareness)
+    scale = superellipse_scale(theta, shape.squareness, shape.aspect)
+    r = np.hypot(vertices[:, 0], vertices[:, 1]) / scale
     z = vertices[:, 2]
     _, nearest = cKDTree(profile.points).query(np.column_stack([r, z]))
     labels = profile.labels[nearest].copy()
-    if has_handle:
+    if shape.handle:
         r_out = np.interp(z, profile.outer[:, 1], profile.outer[:, 0])
         labels[(r > r_out + 3e-4) & (z < profile.outer[-1, 1])] = Part.HANDLE
     return labels
@@ -356,16 +447,59 @@ def build_object(spec: ObjectSpec | str) -> ContainerModel:
     """
     if isinstance(spec, str):
         spec = get_spec(spec)
-    scale = ring_scale(spec.squareness)
+    shape = shape_of(spec)
+    scale = shape.ring_scale()
     profile, volume = solve_profile(spec, scale)
+    return assemble(spec, shape, profile, scale, volume)
+
+
+def build_from_radii(
+    spec: ObjectSpec | ProceduralSpec, shape: Shape, a: float, b: float, top: float
+) -> ContainerModel:
+    """Build a container whose radii and height are given rather than solved for.
+
+    Args:
+        spec: what it is made from (kept in the model).
+        shape: its :class:`Shape`.
+        a: the cavity floor's radius, m.
+        b: the inner wall's radius at its top, m.
+        top: the inner wall's top above the base, m (the lip rises above it).
+
+    Raises:
+        InputError: a base thinner than the wall, or an unknown lip.
+    """
+    scale = shape.ring_scale()
+    profile = _profile(shape, a, b, top)
+    return assemble(spec, shape, profile, scale, _cavity_volume(profile.cavity, scale))
+
+
+def assemble(
+    spec: ObjectSpec | ProceduralSpec,
+    shape: Shape,
+    profile: Profile,
+    scale: np.ndarray,
+    volume: float,
+) -> ContainerModel:
+    """Revolve a solved profile, join the handle, and label every vertex from construction.
+
+    Args:
+        spec: what the container was made from (kept in the model).
+        shape: its :class:`Shape`.
+        profile: its cross-section.
+        scale: the rings' radial scale (:meth:`Shape.ring_scale`).
+        volume: the cavity's volume, m^3.
+
+    Raises:
+        RuntimeError: the union with the handle left a mesh that is not watertight.
+    """
     body = _revolve(profile.points, scale)
-    if spec.handle:
-        mesh = trimesh.boolean.union([body, _handle(spec, profile.outer)], engine="manifold")
+    if shape.handle:
+        mesh = trimesh.boolean.union([body, _handle(shape, profile.outer)], engine="manifold")
     else:
         mesh = body
     if not mesh.is_watertight:
-        raise RuntimeError(f"{spec.name}: the built mesh is not watertight")
-    labels = _label_vertices(np.asarray(mesh.vertices), profile, spec.squareness, spec.handle)
+        raise RuntimeError(f"{shape.name}: the built mesh is not watertight")
+    labels = _label_vertices(np.asarray(mesh.vertices), profile, shape)
     return ContainerModel(
         spec=spec,
         mesh=mesh,

@@ -123,6 +123,7 @@ def render_gallery(
     path: str | Path,
     columns: int = 3,
     view: tuple[float, float] = (30.0, -60.0),
+    dpi: int = 90,
 ) -> Path:
     """Write a PNG grid of labelled meshes drawn at one common scale.
 
@@ -131,6 +132,7 @@ def render_gallery(
         path: output PNG file.
         columns: panels per row.
         view: (elevation, azimuth) in degrees.
+        dpi: pixels per inch of the 3.6-inch panels.
 
     Returns:
         The path written.
@@ -156,7 +158,7 @@ def render_gallery(
         ax.set_title(title, fontsize=10)
     _part_legend(fig, list(Part))
     fig.tight_layout(rect=(0, 0.04, 1, 1))
-    fig.savefig(path, dpi=90)
+    fig.savefig(path, dpi=dpi)
     plt.close(fig)
     return path
 

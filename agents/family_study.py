@@ -1,0 +1,255 @@
+"""Studies over a procedural family of containers, by shape: warping, and pouring policies.
+
+:func:`family_warping`: the red cup's labels warped onto every member (as the
+environments label it) against the member's labels from construction, IoU per part.
+
+:func:`family_study`: every policy pours from each member into itself (source and target
+the same container, ``episodes`` episodes each, seeds training never used), exactly as
+:func:`~pour_gym.agents.evaluate.evaluate_policy` evaluates any container. The members'
+rows are then grouped by each shape parameter (:mod:`pour_gym.report.family`): success,
+amount error and spill per profile, cross-section, lip, handle and binned height, rim
+radius and wall, each success with a 95 % Wilson interval over the bucket's episodes.
+Members the labelling or the environments refuse are counted and listed, not evaluated.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from pour_gym.agents.evaluate import evaluate_policy, load_policy
+from pour_gym.errors import InputError
+from pour_gym.report.family import BINS, CATEGORIES, PARTS, bucket_tables, by_bucket, mean_of
+from pour_gym.report.tables import markdown_table
+
+VALUES = ("success", "amount_error", "spilled")
+STUDY_SEED = 60_000  # the first evaluation seed (no training run uses 60000+)
+
+
+def wilson_interval(successes: float, n: int, z: float = 1.96) -> tuple[float, float]:
+    """The Wilson score interval of a success rate (95 % for z = 1.96).
+
+    Args:
+        successes: successful episodes (a mean times n is fine).
+        n: episodes.
+        z: the normal quantile of the interval's confidence.
+    """
+    if n == 0:
+        return (0.0, 1.0)
+    p = successes / n
+    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
+    half = z * np.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
+    return (float(max(0.0, centre - half)), float(min(1.0, centre + half)))
+
+
+def usable_members(family: str) -> tuple[list[str], list[dict]]:
+    """The family's members the environments take, and those they refuse (with why)."""
+    from pour_gym.assets import check_open, resolve_asset
+    from pour_gym.objects.procedural import family_members
+
+    usable, refused = [], []
+    for name in family_members(family):
+        try:
+            check_open(resolve_asset(name), name)
+        except InputError as exc:
+            refused.append({"name": name, "reason": str(exc)})
+            continue
+        usable.append(name)
+    return usable, refused
+
+
+def family_study(
+    family: str, policies: list[str], episodes: int = 2, seed: int = STUDY_SEED
+) -> dict:
+    """Evaluate each policy on every usable member of a family; group by shape.
+
+    Args:
+        family: a procedural family (``procedural:test``).
+        policies: ``"scripted"``, shipped model names or model files
+            (:func:`~pour_gym.agents.evaluate.load_policy`).
+        episodes: episodes per member.
+        seed: the first episode's seed.
+
+    Returns:
+        ``{"family", "episodes", "seed", "refused": [...], "policies": {name: {"env",
+        "mean": {success, success_interval, amount_error, spilled}, "members": [rows with
+        "spec"], "buckets": by_bucket(...)}}}``.
+    """
+    from pour_gym.objects.procedural import member_spec
+
+    if episodes < 1:
+        raise InputError(f"--episodes must be at least 1, not {episodes}")
+    usable, refused = usable_members(family)
+    if not usable:
+        raise InputError(f"every member of {family} was refused: {refused[0]['reason']}")
+    doc: dict = {"family": family, "episodes": episodes, "seed": seed, "refused": refused}
+    doc["policies"] = {}
+    for name in policies:
+        loaded = load_policy(name)
+        result = evaluate_policy(
+            loaded.policy, loaded.env_id, usable, episodes, seed=seed,
+            env_kwargs=loaded.env_kwargs, trained_on=loaded.trained_on,
+        )  # fmt: skip
+        rows = [{**r, "spec": member_spec(r["source"]).to_dict()} for r in result["rows"]]
+        n = len(rows) * episodes
+        mean = {key: float(np.mean([r[key] for r in rows])) for key in VALUES}
+        mean["success_interval"] = wilson_interval(mean["success"] * n, n)
+        buckets = by_bucket(rows, VALUES)
+        for groups in buckets.values():
+            for bucket in groups.values():
+                k = bucket["members"] * episodes
+                bucket["success_interval"] = wilson_interval(bucket["success"] * k, k)
+        doc["policies"][name] = {
+            "env": loaded.env_id, "mean": mean, "members": rows, "buckets": buckets,
+        }  # fmt: skip
+    return doc
+
+
+def plot_family_study(doc: dict, path: str | Path) -> Path:
+    """Success (95 % Wilson intervals) per bucket of each shape parameter, one panel each."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    parameters = (*CATEGORIES, *BINS)
+    fig, axes = plt.subplots(1, len(parameters), figsize=(3.0 * len(parameters), 3.6), sharey=True)
+    names = list(doc["policies"])
+    for ax, parameter in zip(axes, parameters, strict=True):
+        buckets = list(next(iter(doc["policies"].values()))["buckets"][parameter])
+        for k, name in enumerate(names):
+            groups = doc["policies"][name]["buckets"][parameter]
+            x = np.arange(len(buckets)) + (k - (len(names) - 1) / 2) * 0.15
+            y = np.array([groups[b]["success"] for b in buckets])
+            lo_hi = np.array([groups[b]["success_interval"] for b in buckets])
+            ax.errorbar(x, y, yerr=[y - lo_hi[:, 0], lo_hi[:, 1] - y], fmt="o", capsize=3,
+                        label=name)  # fmt: skip
+        ax.set_xticks(np.arange(len(buckets)), buckets, rotation=45, ha="right", fontsize=8)
+        ax.set_title(parameter.replace("_", " "))
+        ax.set_ylim(-0.05, 1.05)
+        ax.grid(alpha=0.3)
+    axes[0].set_ylabel("success (95 % Wilson interval)")
+    axes[0].legend(fontsize=8, loc="lower left")
+    fig.suptitle(f"{doc['family']}: success by shape, {doc['episodes']} episodes per container")
+    fig.tight_layout()
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+    return path
+
+
+def write_family_study(doc: dict, out: str | Path) -> Path:
+    """Write ``summary.json``, ``success.png`` and ``report.md`` of a study into ``out``."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "summary.json").write_text(json.dumps(doc, indent=1) + "\n")
+    plot_family_study(doc, out / "success.png")
+    (out / "report.md").write_text(family_study_report(doc))
+    return out
+
+
+def family_study_report(doc: dict) -> str:
+    """Markdown of :func:`family_study`: one row per policy, then each policy's buckets."""
+    total = sum(len(p["members"]) for p in doc["policies"].values()) // max(len(doc["policies"]), 1)
+    rows = []
+    for name, p in doc["policies"].items():
+        m = p["mean"]
+        lo, hi = m["success_interval"]
+        rows.append([f"`{name}`", p["env"], f"{m['success']:.2f} [{lo:.2f}, {hi:.2f}]",
+                     f"{m['amount_error']:.1f}", f"{m['spilled']:.2f}"])  # fmt: skip
+    lines = [
+        f"# Generalisation over {doc['family']}",
+        "",
+        f"Written by `pour-gym report generalisation --family {doc['family']}`: each policy "
+        f"pours from every one of {total} containers into itself, {doc['episodes']} "
+        f"episodes each at seeds {doc['seed']}+ (never used in training). Success is the "
+        "share of episodes that ended with the target amount within tolerance, nothing "
+        "spilled and the source upright; brackets hold a 95 % Wilson interval over the "
+        "episodes. Amount error is |poured - target| in particles.",
+        "",
+        markdown_table(
+            ["policy", "env", "success", "amount error", "spilled"], rows, align="llrrr"
+        ),
+        "",
+        "![success by shape](success.png)",
+    ]
+    refused = doc["refused"]
+    lines += ["", f"Refused by the labelling or the environments: {len(refused)}."]
+    lines += [f"- `{r['name']}`: {r['reason']}" for r in refused]
+    for name, p in doc["policies"].items():
+        lines += ["", f"## `{name}` by shape", "", bucket_tables(p["buckets"], VALUES)]
+    return "\n".join(lines) + "\n"
+
+
+def family_warping(family: str) -> dict:
+    """Warp the red cup's labels onto every member of a family; IoU against construction.
+
+    The labelling is the environments' own (:func:`pour_gym.assets.resolve_asset`: the
+    ``best`` method from the red cup, cached), so the members labelled here are the ones
+    the environments then load. A member the labelling refuses (an InputError: it found
+    no opening, no cavity) is counted and listed with the reason, not averaged.
+
+    Args:
+        family: a procedural family name (``procedural:test``).
+
+    Returns:
+        ``{"family", "method", "source", "members": [{"name", "spec", "iou_<part>"...}],
+        "refused": [{"name", "reason"}], "mean": {"iou_<part>": mean}, "buckets":
+        by_bucket(...)}``.
+    """
+    from tqdm import tqdm
+
+    from pour_gym.assets import resolve_asset
+    from pour_gym.objects.procedural import family_members, member_spec
+
+    names = family_members(family)
+    members, refused = [], []
+    method, source = "best", "red_cup"
+    for name in tqdm(names, desc=f"label {family}", file=sys.stderr):
+        try:
+            meta = resolve_asset(name).meta
+            method, source = meta["source"]["method"], meta["source"]["object"]
+        except InputError as exc:
+            refused.append({"name": name, "reason": str(exc)})
+            continue
+        row = {"name": name, "spec": member_spec(name).to_dict()}
+        row.update({f"iou_{part}": meta["iou"][part] for part in PARTS})
+        members.append(row)
+    values = tuple(f"iou_{part}" for part in PARTS)
+    return {
+        "family": family,
+        "method": method,
+        "source": source,
+        "members": members,
+        "refused": refused,
+        "mean": mean_of(members, values),
+        "buckets": by_bucket(members, values),
+    }
+
+
+def family_warping_report(doc: dict) -> str:
+    """Markdown of :func:`family_warping`: the means, the refusals, then every bucket."""
+    values = tuple(f"iou_{part}" for part in PARTS)
+    m = doc["mean"]
+    means = ", ".join(f"{v} {m[v]:.3f}" for v in values if m[v] is not None)
+    lines = [
+        f"# Warping over {doc['family']}",
+        "",
+        f"Written by `pour-gym report warping --family {doc['family']}`: the {doc['source']}'s "
+        f"labels warped ({doc['method']}) onto each of {len(doc['members']) + len(doc['refused'])} "
+        "procedural containers, against each one's labels from construction (IoU per part, "
+        "vertex by vertex; the handle's only where there is one).",
+        "",
+        f"Mean over {m['members']} members: {means}.",
+    ]
+    if doc["refused"]:
+        lines += ["", f"Refused ({len(doc['refused'])}):", ""]
+        lines += [f"- `{r['name']}`: {r['reason']}" for r in doc["refused"]]
+    else:
+        lines += ["", "Refused: none."]
+    lines += ["", bucket_tables(doc["buckets"], values)]
+    return "\n".join(lines) + "\n"
