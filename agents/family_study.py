@@ -42,7 +42,8 @@ def wilson_interval(successes: float, n: int, z: float = 1.96) -> tuple[float, f
     p = successes / n
     centre = (p + z * z / (2 * n)) / (1 + z * z / n)
     half = z * np.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
-    return (float(max(0.0, centre - half)), float(min(1.0, centre + half)))
+    # The interval holds p in exact arithmetic; rounding at p = 0 or 1 must not put it out.
+    return (float(max(0.0, min(centre - half, p))), float(min(1.0, max(centre + half, p))))
 
 
 def usable_members(family: str) -> tuple[list[str], list[dict]]:
@@ -125,8 +126,10 @@ def plot_family_study(doc: dict, path: str | Path) -> Path:
             x = np.arange(len(buckets)) + (k - (len(names) - 1) / 2) * 0.15
             y = np.array([groups[b]["success"] for b in buckets])
             lo_hi = np.array([groups[b]["success_interval"] for b in buckets])
-            ax.errorbar(x, y, yerr=[y - lo_hi[:, 0], lo_hi[:, 1] - y], fmt="o", capsize=3,
-                        label=name)  # fmt: skip
+            # Clipped at 0: a mean of per-container rates may differ from the interval's
+            # count-based rate in its last bit.
+            yerr = np.maximum([y - lo_hi[:, 0], lo_hi[:, 1] - y], 0.0)
+            ax.errorbar(x, y, yerr=yerr, fmt="o", capsize=3, label=name)
         ax.set_xticks(np.arange(len(buckets)), buckets, rotation=45, ha="right", fontsize=8)
         ax.set_title(parameter.replace("_", " "))
         ax.set_ylim(-0.05, 1.05)

@@ -68,3 +68,15 @@ def test_intervals_and_kinds():
     assert training_kind(clone) == "clone"
     clone["hyperparameters"]["gradient_steps"] = 1
     assert training_kind(clone) == "clone + RL"
+
+
+def test_the_committed_report_is_what_the_committed_summaries_give(tmp_path):
+    from pathlib import Path
+
+    docs = Path(__file__).resolve().parents[1] / "docs"
+    committed = sorted((docs / "baselines" / "runs").glob("*.json"))
+    assert len(committed) >= 10  # three seeds of the clone's two rows, PPO's runs
+    paths = {"summaries": docs / "baselines" / "runs", "report": tmp_path / "baselines.md",
+             "curves": tmp_path / "baselines" / "curves.png"}  # fmt: skip
+    baselines_report([], **paths)
+    assert paths["report"].read_text() == (docs / "baselines.md").read_text()

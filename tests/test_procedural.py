@@ -209,6 +209,10 @@ def test_wilson_interval_matches_the_textbook():
     lo, hi = wilson_interval(5, 10)
     assert (lo, hi) == pytest.approx((0.2366, 0.7634), abs=1e-4)
     assert wilson_interval(10, 10)[1] == 1.0 and wilson_interval(0, 10)[0] == 0.0
+    for n in range(1, 300):  # the interval holds the rate, rounding included
+        for k in (0, n):
+            lo, hi = wilson_interval(k, n)
+            assert lo <= k / n <= hi
 
 
 @pytest.mark.slow
