@@ -189,6 +189,8 @@ def plot_roc(result: dict, title: str, path: str | Path) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from pour_gym.report.pictures import save_figure
+
     fig, ax = plt.subplots(figsize=(6.5, 5.5))
     for name, (fpr, tpr) in result["curves"].items():
         style = {"color": "black", "lw": 2.5} if name == "all" else {"lw": 1.2}
@@ -200,12 +202,7 @@ def plot_roc(result: dict, title: str, path: str | Path) -> Path:
     ax.set_xlim(0, 1)
     ax.set_ylim(0, 1.01)
     ax.legend(fontsize=7, loc="lower right")
-    fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path)
 
 
 def results_table(result: dict) -> str:

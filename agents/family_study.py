@@ -116,6 +116,8 @@ def plot_family_study(doc: dict, path: str | Path) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from pour_gym.report.pictures import save_figure
+
     parameters = (*CATEGORIES, *BINS)
     fig, axes = plt.subplots(1, len(parameters), figsize=(3.0 * len(parameters), 3.6), sharey=True)
     names = list(doc["policies"])
@@ -137,12 +139,7 @@ def plot_family_study(doc: dict, path: str | Path) -> Path:
     axes[0].set_ylabel("success (95 % Wilson interval)")
     axes[0].legend(fontsize=8, loc="lower left")
     fig.suptitle(f"{doc['family']}: success by shape, {doc['episodes']} episodes per container")
-    fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=90)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path, dpi=90)
 
 
 def write_family_study(doc: dict, out: str | Path) -> Path:

@@ -21,6 +21,7 @@ Units are metres; z is up and the base rests on z = 0; the handle points along +
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -51,9 +52,9 @@ HANDLE_SIDES = 20
 class Shape:
     """What the builder reads of a container: wall, base, profile, cross-section, lip, handle.
 
-    A thesis object's :class:`~pour_gym.objects.catalogue.ObjectSpec` gives one
-    (:func:`shape_of`); the procedural family (:mod:`pour_gym.objects.procedural`) draws
-    them. Lengths in m.
+    :func:`shape_of` reads one from a thesis object's
+    :class:`~pour_gym.objects.catalogue.ObjectSpec` or from a procedural member's
+    parameters (:mod:`pour_gym.objects.procedural`). Lengths in m.
 
     Attributes:
         name: the container's name (in error messages).
@@ -93,17 +94,14 @@ class Shape:
         return ring_scale(self.squareness, n_theta, self.aspect)
 
 
-def shape_of(spec: ObjectSpec) -> Shape:
-    """The builder's :class:`Shape` of a thesis object."""
-    return Shape(
-        name=spec.name,
-        height=spec.height,
-        wall=spec.wall,
-        base=spec.base,
-        flare=spec.flare,
-        squareness=spec.squareness,
-        handle=spec.handle,
-    )
+def shape_of(spec: ObjectSpec | ProceduralSpec) -> Shape:
+    """The builder's :class:`Shape` of a spec: the attributes it shares with a shape.
+
+    A thesis object has no bulge, oval, lip or handle placement of its own: those keep
+    the defaults (the thesis objects' shapes).
+    """
+    shared = [f.name for f in dataclasses.fields(Shape) if hasattr(spec, f.name)]
+    return Shape(**{name: getattr(spec, name) for name in shared})
 
 
 @dataclass

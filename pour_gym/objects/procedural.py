@@ -32,7 +32,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from pour_gym.errors import InputError
-from pour_gym.objects.build import ContainerModel, Shape, build_from_radii
+from pour_gym.objects.build import ContainerModel, build_from_radii, shape_of
 
 PREFIX = "procedural:"
 TRAIN_SEED, TRAIN_SIZE = 20_261_202, 200
@@ -120,24 +120,6 @@ class ProceduralSpec:
     handle: bool
     handle_span: tuple[float, float]
     handle_reach: float
-
-    def shape(self) -> Shape:
-        """The builder's :class:`~pour_gym.objects.build.Shape`."""
-        return Shape(
-            name=self.name,
-            height=self.height,
-            wall=self.wall,
-            base=self.base,
-            flare=self.flare,
-            bulge=self.bulge,
-            squareness=self.squareness,
-            aspect=self.aspect,
-            lip=self.lip,
-            bead=self.bead,
-            handle=self.handle,
-            handle_span=self.handle_span,
-            handle_reach=self.handle_reach,
-        )
 
     def to_dict(self) -> dict:
         """The parameters as a JSON-serialisable dict (SI units)."""
@@ -274,7 +256,7 @@ def build_spec(spec: ProceduralSpec) -> ContainerModel:
     # inner wall's top is half a wall inside it.
     b = spec.rim_radius - spec.wall / 2.0
     top = spec.height - spec.wall / 2.0
-    return build_from_radii(spec, spec.shape(), spec.floor_radius, b, top)
+    return build_from_radii(spec, shape_of(spec), spec.floor_radius, b, top)
 
 
 def build_member(name: str) -> ContainerModel:

@@ -57,10 +57,12 @@ def _part_legend(fig, parts: list[Part]) -> None:
     fig.legend(handles=handles, loc="lower center", ncol=len(handles), frameon=False)
 
 
-def _save(fig, path):
-    """Lay out, write and close a figure; the path written."""
+def save_figure(fig, path: str | Path, dpi: int = 110) -> Path:
+    """Lay out, write (its folder made) and close a figure; the path written."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    fig.savefig(path, dpi=dpi)
     plt.close(fig)
     return path
 
@@ -115,7 +117,7 @@ def render_mesh(
         _part_legend(fig, [p for p in Part if np.any(np.asarray(labels) == p)])
     if title:
         fig.suptitle(title)
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def render_gallery(
@@ -195,4 +197,4 @@ def render_points(
     ax.set_axis_off()
     if title:
         ax.set_title(title)
-    return _save(fig, path)
+    return save_figure(fig, path)
