@@ -91,11 +91,12 @@ def _procedural_family(args: argparse.Namespace) -> Output:
         ]
         render_gallery(panels, args.png, columns=10, dpi=50)
     if args.out:
-        from pour_gym.assets import label_container, write_asset
+        from pour_gym.assets import resolve_asset, write_asset
 
+        # The environments' own labelling, cached: a member labelled once is not warped again.
         for name in tqdm(names, desc="label and write", file=sys.stderr):
             stem = name.removeprefix("procedural:").replace("#", "_").replace("@", "_")
-            write_asset(label_container(name), Path(args.out) / stem, picture=False)
+            write_asset(resolve_asset(name), Path(args.out) / stem, picture=False)
 
     def text() -> str:
         rows = [
