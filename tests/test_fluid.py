@@ -175,6 +175,30 @@ def test_a_kernel_loaded_from_the_cache_computes_what_it_computed_when_compiled(
     assert run(tmp_path / "b", helpers="1") == (compiled, 0)
 
 
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="the tbb wheel is Linux's")
+def test_parallel_loops_run_on_tbb_after_open3d_was_loaded_first():
+    """open3d bundles TBB 2021.5, too old for numba: were it the process's first TBB, a
+    parallel kernel told to use TBB would raise "No threading layer could be loaded" (as
+    it did in a test run that scanned a cup before it evaluated a policy)."""
+    script = (
+        "import numba, numpy as np\n"
+        "import pour_gym\n"
+        "from pour_gym.io.open3d_loader import open3d\n"
+        "open3d()\n"
+        "import pour_gym.fluid\n"
+        "@numba.njit(parallel=True, cache=False)\n"
+        "def total(a):\n"
+        "    s = 0.0\n"
+        "    for i in numba.prange(len(a)):\n"
+        "        s += a[i]\n"
+        "    return s\n"
+        "print(total(np.ones(1000)), numba.threading_layer())\n"
+    )
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.split() == ["1000.0", "tbb"]
+
+
 def test_same_start_same_particles_bit_for_bit(cup_sdf):
     """The same start gives the same particles, and so do the serial and parallel builds."""
 

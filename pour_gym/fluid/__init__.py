@@ -5,37 +5,17 @@ The fluid kernel runs on one thread (compiled without any threading layer) or on
 threading layers only TBB and the slow workqueue survive ``fork()``: GNU OpenMP aborts
 the children of a process that used it, which is what ``AsyncVectorEnv`` and
 ``multiprocessing`` do on Linux by default. The ``tbb`` wheel (a dependency on Linux x86_64)
-brings a TBB new enough for numba, but the system's older ``libtbb.so.12`` would be found
-first; it is loaded here, before any parallel kernel runs, and numba is told to use it.
-Without it the threads run on OpenMP, and a warning names the fix when such a process
-forks.
+brings a TBB new enough for numba; :mod:`pour_gym.io.tbb` loads it before any other copy
+(open3d bundles an older one) and tells numba to use it. Without it the threads run on
+OpenMP, and a warning names the fix when such a process forks.
 """
 
-import ctypes
 import os
 import sys
-from pathlib import Path
 
+from pour_gym.io.tbb import use_wheel_tbb
 
-def _use_wheel_tbb() -> str | None:
-    """Load the tbb wheel's library and select numba's TBB layer; the library's path."""
-    import numba
-
-    if os.environ.get("NUMBA_THREADING_LAYER") or numba.config.THREADING_LAYER != "default":
-        return None  # the user chose a layer
-    for prefix in dict.fromkeys((sys.prefix, sys.base_prefix)):
-        library = Path(prefix) / "lib" / "libtbb.so.12"
-        if library.is_file():
-            try:
-                ctypes.CDLL(str(library), mode=ctypes.RTLD_GLOBAL)
-            except OSError:
-                return None
-            numba.config.THREADING_LAYER = "tbb"
-            return str(library)
-    return None
-
-
-TBB_LIBRARY = _use_wheel_tbb() if sys.platform.startswith("linux") else None
+TBB_LIBRARY = use_wheel_tbb()
 
 
 def _warn_before_fork() -> None:

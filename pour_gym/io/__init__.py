@@ -1,1 +1,1 @@
-"""Where files and output go: the cache folder, stdout redirection, open3d's loader."""
+"""Files, output and native libraries: the cache folder, stdout, open3d, the TBB wheel."""
