@@ -7,8 +7,9 @@ evaluation, its learning curve, its wall time) and writes ``docs/baselines.md`` 
 committed: the report can be regenerated from them without the run directories (their
 checkpoints and replay buffers are hundreds of MB).
 
-A row is one way of training (environment, algorithm, observation mode, and whether it
-learnt from the reward alone, cloned the expert, or cloned then learnt): its seeds' mean
+A row is one way of training (environment, algorithm, observation mode, whether it learnt
+from the reward alone, cloned the expert, or cloned then learnt, and which model of a run
+was evaluated: the last step's or, with ``--keep-best``, the best curve point's): its seeds' mean
 of each metric, with a 95 % percentile-bootstrap interval over the seeds
 (``scipy.stats.bootstrap``). rliable (Agarwal et al. 2021) is the field's tool for
 intervals over runs and tasks; its stratified bootstrap over one task's seeds is this
@@ -46,6 +47,14 @@ def training_kind(config: dict) -> str:
         return "reward"
     steps = config.get("hyperparameters", {}).get("gradient_steps", 1)
     return "clone" if steps == 0 else "clone + RL"
+
+
+def model_kind(config: dict) -> str:
+    """Which of a run's models was evaluated: the last step's, or the best curve point's.
+
+    ``"last step"`` or, for a run with ``--keep-best``, ``"best curve point"``.
+    """
+    return "best curve point" if config.get("keep_best") else "last step"
 
 
 def _wall_seconds(run_dir: Path, result: dict) -> float | None:
@@ -96,6 +105,7 @@ def run_summary(run_dir: Path) -> dict:
         "algo": config["algo"],
         "obs_mode": config["obs_mode"],
         "kind": training_kind(config),
+        "model": model_kind(config),
         "seed": config["seed"],
         "timesteps": config["timesteps"],
         "wall_seconds": _wall_seconds(run_dir, result),
@@ -127,8 +137,8 @@ def interval(values: list[float]) -> tuple[float, float] | None:
     return float(res.confidence_interval.low), float(res.confidence_interval.high)
 
 
-def _group_key(s: dict) -> tuple[str, str, str, str]:
-    return (s["env"], s["algo"], s["obs_mode"], s["kind"])
+def _group_key(s: dict) -> tuple[str, str, str, str, str]:
+    return (s["env"], s["algo"], s["obs_mode"], s["kind"], s.get("model", "last step"))
 
 
 def _cell(stat: dict, digits: int) -> str:
@@ -161,6 +171,8 @@ def _plot(groups: dict[tuple, list[dict]], path: Path) -> Path:
 
     fig, ax = plt.subplots(figsize=(8, 4.5))
     for key, runs in sorted(groups.items()):
+        if key[-1] != "last step" and (*key[:-1], "last step") in groups:
+            continue  # the same runs' curves, another of their models evaluated
         curves = [r["curve"] for r in runs if r["curve"]]
         if not curves:
             continue
@@ -171,7 +183,7 @@ def _plot(groups: dict[tuple, list[dict]], path: Path) -> Path:
             [[dict(zip(c["timesteps"], c["success"], strict=True))[x] for x in steps]
              for c in curves]
         )  # fmt: skip
-        env, algo, mode, kind = key
+        env, algo, mode, kind, _ = key
         seeds = f"{len(curves)} seed" + ("s" if len(curves) > 1 else "")
         label = f"{env.split('/')[-1]} {algo.upper()} {mode}, {kind} ({seeds})"
         line = ax.plot(steps, ys.mean(axis=0), "o-", label=label, markersize=3)[0]
@@ -208,7 +220,7 @@ def baselines_report(
         curves: the learning curves' PNG.
 
     Returns:
-        ``{"rows": [{env, algo, obs_mode, kind, seeds, each metric's mean and interval,
+        ``{"rows": [{env, algo, obs_mode, kind, model, seeds, each metric's mean and interval,
         timesteps, wall minutes}]}``.
 
     Raises:
@@ -232,12 +244,12 @@ def baselines_report(
     groups: dict[tuple, list[dict]] = {}
     for s in found:
         groups.setdefault(_group_key(s), []).append(s)
-    header = ["env", "algorithm", "observation", "learnt from", "seeds",
+    header = ["env", "algorithm", "observation", "learnt from", "model", "seeds",
               *METRICS.values(), "env steps", "wall time (min)"]  # fmt: skip
     table, rows = [], []
     for key, group in sorted(groups.items()):
-        env, algo, mode, kind = key
-        row = {"env": env, "algo": algo, "obs_mode": mode, "kind": kind,
+        env, algo, mode, kind, model = key
+        row = {"env": env, "algo": algo, "obs_mode": mode, "kind": kind, "model": model,
                "seeds": sorted(s["seed"] for s in group)}  # fmt: skip
         cells = []
         for name in METRICS:
@@ -256,6 +268,7 @@ def baselines_report(
                 algo.upper(),
                 mode,
                 kind,
+                model,
                 str(len(group)),
                 *cells,
                 "/".join(f"{t:,}" for t in steps),
@@ -275,7 +288,7 @@ def baselines_report(
         "the run never trained on, each as source and target, at seeds training never used. "
         "Amount error is |poured - target| in particles (0.125 ml each).",
         "",
-        markdown_table(header, table, align="llllr" + "r" * (len(METRICS) + 2)),
+        markdown_table(header, table, align="lllllr" + "r" * (len(METRICS) + 2)),
         "",
         f"![learning curves]({os.path.relpath(curves, Path(report).parent)})",
         "",

@@ -291,3 +291,36 @@ def test_keep_best_keeps_the_most_successful_then_the_closest_point(tmp_path):
     tilt = task_of("PourGym/TiltPour-v0")
     assert keep_if_best(other, {"success": 0.5, "return": 1.0}, Model("x"), None, tilt)
     assert keep_if_best(other, {"success": 0.5, "return": 2.0}, Model("y"), None, tilt)
+
+
+def test_keep_best_of_a_finished_curve_takes_that_points_checkpoint(tmp_path):
+    """A run trained without --keep-best, asked for it afterwards: the point keep_if_best
+    would have kept (the first of the best), its model and statistics from checkpoints/."""
+    from pour_gym.agents.training.curves import keep_best_of_curve
+    from pour_gym.envs import POUR
+
+    run = tmp_path / "run"
+    (run / "checkpoints").mkdir(parents=True)
+    (run / "curve.csv").write_text(
+        "timesteps,success,return,amount_error\n"
+        "20000,0.5,1.0,20\n40000,0.83,3.0,12\n60000,0.83,3.1,12\n80000,0.67,3.2,5\n"
+    )
+    for steps in (20000, 40000, 60000, 80000):
+        (run / "checkpoints" / f"model_{steps}_steps.zip").write_text(f"model {steps}")
+        (run / "checkpoints" / f"vecnormalize_{steps}_steps.pkl").write_text(f"stats {steps}")
+    (run / "vecnormalize.pkl").write_text("stats of the last step")
+    point = keep_best_of_curve(run, POUR)
+    assert point["timesteps"] == 40000 and point["success"] == 0.83
+    assert (run / "best" / "model.zip").read_text() == "model 40000"
+    assert (run / "best" / "vecnormalize.pkl").read_text() == "stats 40000"
+    assert json.loads((run / "best" / "point.json").read_text())["timesteps"] == 40000
+    # A normalising run whose best checkpoint lost its statistics is refused, not evaluated
+    # with the last step's.
+    (run / "best" / "point.json").unlink()
+    (run / "checkpoints" / "vecnormalize_40000_steps.pkl").unlink()
+    with pytest.raises(InputError, match=r"vecnormalize_40000_steps\.pkl"):
+        keep_best_of_curve(run, POUR)
+    (run / "checkpoints" / "model_40000_steps.zip").unlink()
+    with pytest.raises(InputError, match="checkpoint-every"):
+        keep_best_of_curve(run, POUR)
+    assert keep_best_of_curve(tmp_path, POUR) is None  # no curve

@@ -11,12 +11,12 @@ from pour_gym.agents.baselines import baselines_report, interval, training_kind
 from pour_gym.errors import InputError
 
 
-def _run(folder, seed, success, algo="sac", mode="features", demos=None):
+def _run(folder, seed, success, algo="sac", mode="features", demos=None, keep_best=False):
     """A finished run directory: config.json, eval.json (red cup trained on, two unseen)."""
     folder.mkdir(parents=True)
     config = {"env": "PourGym/Pour-v1", "algo": algo, "obs_mode": mode, "seed": seed,
               "timesteps": 1000, "objects": "red_cup", "demonstrations": demos,
-              "hyperparameters": {"gradient_steps": 1}}  # fmt: skip
+              "hyperparameters": {"gradient_steps": 1}, "keep_best": keep_best}  # fmt: skip
     rows = [
         {"object": "red_cup", "trained_on": True, "success": success, "amount_error": 4.0,
          "spilled": 0.0},
@@ -36,10 +36,11 @@ def test_report_groups_seeds_and_gives_intervals_over_them(tmp_path):
     for seed, success in enumerate([0.6, 0.8, 1.0]):
         _run(tmp_path / "runs" / f"sac_s{seed}", seed, success)
     _run(tmp_path / "runs" / "ppo_s0", 0, 0.2, algo="ppo")
+    _run(tmp_path / "runs" / "ppo_s0_best", 0, 0.6, algo="ppo", keep_best=True)
     paths = {"summaries": tmp_path / "sum", "report": tmp_path / "b.md",
              "curves": tmp_path / "b" / "curves.png"}  # fmt: skip
     doc = baselines_report([tmp_path / "runs"], **paths)
-    rows = {r["algo"]: r for r in doc["rows"]}
+    rows = {r["algo"]: r for r in doc["rows"] if r["model"] == "last step"}
     sac = rows["sac"]
     assert sac["seeds"] == [0, 1, 2]
     assert sac["trained_success"]["mean"] == pytest.approx(0.8)
@@ -49,8 +50,12 @@ def test_report_groups_seeds_and_gives_intervals_over_them(tmp_path):
     assert sac["unseen_spilled"]["mean"] == pytest.approx(2.0)
     assert sac["wall_minutes"] == [10.0, 20.0, 30.0]
     assert rows["ppo"]["trained_success"]["interval"] is None  # one seed: no interval
+    # The same run's best curve point is a row of its own, not a fourth seed.
+    (best,) = [r for r in doc["rows"] if r["model"] == "best curve point"]
+    assert best["seeds"] == [0] and best["trained_success"]["mean"] == pytest.approx(0.6)
     text = paths["report"].read_text()
-    assert "| Pour-v1 | SAC | features | reward | 3 | 0.80 [" in text
+    assert "| Pour-v1 | SAC | features | reward | last step | 3 | 0.80 [" in text
+    assert "| Pour-v1 | PPO | features | reward | best curve point | 1 | 0.60 |" in text
     assert paths["curves"].is_file() and "(b/curves.png)" in text
     # Regenerated from the summaries alone, the same report.
     baselines_report([], **paths)

@@ -10,6 +10,8 @@ environment steps) or ``bc_curve.csv`` (against behaviour-cloning gradient steps
 from __future__ import annotations
 
 import csv
+import json
+import shutil
 import sys
 from pathlib import Path
 
@@ -18,8 +20,16 @@ from tqdm import tqdm
 
 from pour_gym.agents.rollout import rollout, sb3_policy
 from pour_gym.agents.training.config import TrainConfig
-from pour_gym.agents.training.runs import BEST, Run, keep_if_best, save_normaliser
-from pour_gym.envs import make, mean_metrics, task_of
+from pour_gym.agents.training.runs import (
+    BEST,
+    NORMALISER,
+    Run,
+    keep_if_best,
+    rank_point,
+    save_normaliser,
+)
+from pour_gym.envs import Task, make, mean_metrics, task_of
+from pour_gym.errors import InputError
 
 # The curve's episodes start from seeds this far beyond the evaluation's first.
 CURVE_SEED_OFFSET = 500_000
@@ -85,6 +95,55 @@ def read_curve(path: Path) -> dict[str, np.ndarray] | None:
         key: np.array([float(r[key]) if r[key] not in ("", "None") else np.nan for r in rows])
         for key in rows[0]
     }
+
+
+def keep_best_of_curve(out: Path, task: Task) -> dict | None:
+    """Make ``best/`` hold the model of the best point of the run's whole learning curve.
+
+    During training :func:`~pour_gym.agents.training.runs.keep_if_best` keeps each new
+    best point's model as the point is recorded. A run resumed without ``best/``, or
+    trained without ``--keep-best`` and asked for it afterwards, has points whose models
+    are only in ``checkpoints/`` (a checkpoint falls on every curve point when
+    ``--checkpoint-every`` divides ``--curve-every``): this takes the point
+    :func:`keep_if_best` would have kept (the first of the highest rank) from there.
+
+    Args:
+        out: the run directory.
+        task: the env's task (what ranks second after success).
+
+    Returns:
+        The best point, or None for a run without a learning curve.
+
+    Raises:
+        InputError: the best point's model (or, for a normalising run, its statistics) is
+            neither in ``best/`` nor in a checkpoint.
+    """
+    curve = read_curve(out / "curve.csv")
+    if curve is None:
+        return None
+    points = [{k: float(v[i]) for k, v in curve.items()} for i in range(len(curve["timesteps"]))]
+    ranks = [rank_point(p, task) for p in points]
+    point = points[ranks.index(max(ranks))]  # the first of equals, as keep_if_best keeps
+    steps = point["timesteps"] = int(point["timesteps"])
+    folder = out / BEST
+    kept = folder / "point.json"
+    if kept.is_file() and json.loads(kept.read_text()).get("timesteps") == steps:
+        return point
+    model = out / "checkpoints" / f"model_{steps}_steps.zip"
+    if not model.is_file():
+        raise InputError(
+            f"{out}: the best learning-curve point ({steps} steps) has no checkpoint "
+            f"({model.name}); --keep-best needs --checkpoint-every to divide --curve-every"
+        )
+    folder.mkdir(parents=True, exist_ok=True)
+    shutil.copyfile(model, folder / "model.zip")
+    stats = out / "checkpoints" / f"vecnormalize_{steps}_steps.pkl"
+    if (out / NORMALISER).is_file():  # the run normalises: the point's statistics too
+        if not stats.is_file():
+            raise InputError(f"{out}: the checkpoint of {steps} steps has no {stats.name}")
+        shutil.copyfile(stats, folder / NORMALISER)
+    kept.write_text(json.dumps(point) + "\n")
+    return point
 
 
 def plot_curve(out: Path, title: str) -> Path | None:

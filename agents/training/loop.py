@@ -12,7 +12,7 @@ from pour_gym.agents.evaluate import evaluate_policy, evaluation_table
 from pour_gym.agents.rollout import sb3_policy
 from pour_gym.agents.training.bootstrap import start_from_demonstrations
 from pour_gym.agents.training.config import TrainConfig, algorithm
-from pour_gym.agents.training.curves import plot_curve, training_callbacks
+from pour_gym.agents.training.curves import keep_best_of_curve, plot_curve, training_callbacks
 from pour_gym.agents.training.recipes import Recipe, load_recipe
 from pour_gym.agents.training.runs import (
     BEST,
@@ -22,7 +22,7 @@ from pour_gym.agents.training.runs import (
     save_normaliser,
 )
 from pour_gym.assets import expand_containers
-from pour_gym.envs import ENV_IDS, entry, make
+from pour_gym.envs import ENV_IDS, entry, make, task_of
 from pour_gym.errors import InputError
 
 
@@ -65,7 +65,9 @@ def train(config: TrainConfig) -> dict:
         ``timesteps``, ``train_seconds`` (the wall time of everything before the
         evaluation in this process, s) and ``resumed_from`` (the steps of the checkpoint
         it resumed from; 0 for a run from scratch, whose earlier parts' SB3 logs are kept
-        as ``progress_until_<steps>.csv``).
+        as ``progress_until_<steps>.csv``); with ``--keep-best``, ``best_point`` (the
+        learning-curve point whose model was evaluated; run again with ``--keep-best``,
+        a finished run picks it among its checkpoints).
 
     Raises:
         InputError: a bad option or recipe (named), before any work.
@@ -164,7 +166,8 @@ def train(config: TrainConfig) -> dict:
     # A resumed run counts this process's part only.
     train_seconds = time.perf_counter() - started
     best = out / BEST
-    if config.keep_best and (best / "model.zip").is_file():
+    kept = keep_best_of_curve(out, task_of(config.env)) if config.keep_best else None
+    if kept is not None:
         # The model is the best learning-curve point's (best/point.json says which).
         for name in ("model.zip", NORMALISER):
             if (best / name).is_file():
@@ -181,7 +184,7 @@ def train(config: TrainConfig) -> dict:
         trained_on=train_objects,
     )
     result.update(model=str(out / "model.zip"), timesteps=config.timesteps, algo=config.algo,
-                  train_seconds=train_seconds, resumed_from=done)  # fmt: skip
+                  train_seconds=train_seconds, resumed_from=done, best_point=kept)  # fmt: skip
     (out / "eval.json").write_text(json.dumps(result, indent=2) + "\n")
     (out / "eval.md").write_text(evaluation_table(result) + "\n")
     return result

@@ -121,8 +121,11 @@ def save_normaliser(venv, folder: Path, steps: int | None = None) -> None:
         venv.save(str(folder / name))
 
 
-def _rank(point: dict, task: Task) -> tuple[float, float]:
-    """Higher is better: success, then minus the amount error (pouring) or the return."""
+def rank_point(point: dict, task: Task) -> tuple[float, float]:
+    """A learning-curve point's rank, higher is better.
+
+    Success first, then minus the amount error (pouring) or the return.
+    """
     return (point["success"], -point["amount_error"] if task.pours else point["return"])
 
 
@@ -140,7 +143,7 @@ def keep_if_best(folder: Path, point: dict, model, venv, task: Task) -> bool:
         Whether it was kept.
     """
     kept = folder / "point.json"
-    if kept.is_file() and _rank(json.loads(kept.read_text()), task) >= _rank(point, task):
+    if kept.is_file() and rank_point(json.loads(kept.read_text()), task) >= rank_point(point, task):
         return False
     folder.mkdir(parents=True, exist_ok=True)
     model.save(folder / "model.zip")
