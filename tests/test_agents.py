@@ -178,7 +178,9 @@ def test_pour_v1_recipes_learn_from_the_reward_a_few_hundred_steps(algo, tmp_pat
         "--set", "env_wrapper=[{pour_gym.agents.curriculum.TrainingStarts: {near_target: 0.5}}]",
     )  # fmt: skip
     if algo == "ppo":
-        options += ("--set", "n_steps=128", "--set", "batch_size=32")
+        # Three updates; a checkpoint and a curve point after each rollout of 128 steps.
+        options += ("--set", "n_steps=128", "--set", "batch_size=32", "--timesteps", "300",
+                    "--curve-every", "128", "--checkpoint-every", "128")  # fmt: skip
     else:
         options += ("--set", "learning_starts=64", "--set", "batch_size=32")
     done = subprocess.run(train_command(out, *options), capture_output=True, text=True,
@@ -194,6 +196,19 @@ def test_pour_v1_recipes_learn_from_the_reward_a_few_hundred_steps(algo, tmp_pat
     header = (out / "curve.csv").read_text().splitlines()[0].split(",")
     assert "outcome_never_poured" in header and (out / "curve.png").is_file()
     assert "failures" in (out / "eval.md").read_text()
+    if algo != "ppo":
+        return
+    # The curve measured again from the checkpoints is the curve the run recorded (its
+    # points within --timesteps), and --keep-best then evaluates the best point's model.
+    recorded = (out / "curve.csv").read_text().splitlines()
+    assert [int(line.split(",")[0]) for line in recorded[1:]] == [128, 256, 384]
+    again = subprocess.run(train_command(out, *options, "--recurve", "--keep-best"),
+                           capture_output=True, text=True, check=True)  # fmt: skip
+    assert (out / "curve.csv").read_text().splitlines() == recorded[:3]
+    best = json.loads(again.stdout)["best_point"]
+    assert best["timesteps"] in (128, 256)
+    model = out / "checkpoints" / f"model_{best['timesteps']}_steps.zip"
+    assert (out / "model.zip").read_bytes() == model.read_bytes()
 
 
 @pytest.mark.slow

@@ -82,6 +82,13 @@ class TrainConfig:
             "lowest amount error, or the highest return), not the last step"
         ),
     )
+    recurve: bool = field(
+        default=False,
+        metadata=_doc(
+            "measure the learning curve again from the checkpoints (every --curve-every "
+            "steps, --curve-episodes each) before --keep-best picks among its points"
+        ),
+    )
     env_kwargs: dict = field(
         default_factory=dict, metadata=_doc("JSON of more environment arguments")
     )

@@ -83,6 +83,61 @@ def record_curve_point(
     return point
 
 
+def record_curve_from_checkpoints(config: TrainConfig, out: Path, env_kwargs: dict) -> list[dict]:
+    """Measure a run's learning curve again from its checkpoints; ``curve.csv`` rewritten.
+
+    At every ``curve_every`` steps up to ``timesteps``, the checkpoint's policy (with the
+    normaliser saved beside it) plays ``curve_episodes`` episodes from the curve's seeds.
+    That is the curve the run would have recorded with these settings: a curve point's
+    episodes run in an env of their own with the deterministic policy, and change nothing
+    in the training. (More episodes a point make ``--keep-best``'s choice less a matter of
+    luck; the evaluation's seeds stay unseen.)
+
+    Args:
+        config: the run's config (env, curve steps and episodes, seeds, algorithm).
+        out: the run directory.
+        env_kwargs: the training env's arguments.
+
+    Returns:
+        The points.
+
+    Raises:
+        InputError: a curve step without its checkpoint (or, when the run normalises, the
+            statistics beside it).
+    """
+    import pickle
+
+    from pour_gym.agents.training.config import algorithm
+
+    if config.curve_every <= 0:
+        raise InputError("--recurve measures learning-curve points: add --curve-every N")
+    folder = out / "checkpoints"
+    steps = range(config.curve_every, config.timesteps + 1, config.curve_every)
+    loaded = []
+    for step in steps:
+        model = folder / f"model_{step}_steps.zip"
+        stats = folder / f"vecnormalize_{step}_steps.pkl"
+        if not model.is_file() or ((out / NORMALISER).is_file() and not stats.is_file()):
+            raise InputError(
+                f"{out}: no checkpoint of {step} steps ({model.name} with its statistics) to "
+                "measure the curve at; --curve-every must be a multiple of --checkpoint-every"
+            )
+        loaded.append((step, model, stats if stats.is_file() else None))
+    (out / "curve.csv").unlink(missing_ok=True)
+    points = []
+    cls = algorithm(config.algo)
+    for step, model, stats in tqdm(loaded, desc="curve", file=sys.stderr):
+        normaliser = None
+        if stats is not None:
+            with open(stats, "rb") as fh:
+                normaliser = pickle.load(fh)  # a VecNormalize without its env
+        agent = cls.load(model, device="cpu")
+        points.append(
+            record_curve_point(config, out, agent, normaliser, env_kwargs, x=("timesteps", step))
+        )
+    return points
+
+
 def read_curve(path: Path) -> dict[str, np.ndarray] | None:
     """A learning curve's CSV as columns (None if missing or empty)."""
     if not path.is_file():
@@ -128,6 +183,7 @@ def keep_best_of_curve(out: Path, task: Task) -> dict | None:
     folder = out / BEST
     kept = folder / "point.json"
     if kept.is_file() and json.loads(kept.read_text()).get("timesteps") == steps:
+        kept.write_text(json.dumps(point) + "\n")  # the model kept; the curve may be new
         return point
     model = out / "checkpoints" / f"model_{steps}_steps.zip"
     if not model.is_file():

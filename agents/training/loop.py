@@ -12,7 +12,12 @@ from pour_gym.agents.evaluate import evaluate_policy, evaluation_table
 from pour_gym.agents.rollout import sb3_policy
 from pour_gym.agents.training.bootstrap import start_from_demonstrations
 from pour_gym.agents.training.config import TrainConfig, algorithm
-from pour_gym.agents.training.curves import keep_best_of_curve, plot_curve, training_callbacks
+from pour_gym.agents.training.curves import (
+    keep_best_of_curve,
+    plot_curve,
+    record_curve_from_checkpoints,
+    training_callbacks,
+)
 from pour_gym.agents.training.recipes import Recipe, load_recipe
 from pour_gym.agents.training.runs import (
     BEST,
@@ -162,6 +167,8 @@ def train(config: TrainConfig) -> dict:
     model.save(out / "model.zip")
     save_normaliser(venv, out)
     venv.close()
+    if config.recurve:
+        record_curve_from_checkpoints(config, out, env_kwargs)
     # Demonstrations, cloning, learning and the curve's episodes; not the evaluation below.
     # A resumed run counts this process's part only.
     train_seconds = time.perf_counter() - started
