@@ -62,8 +62,34 @@ def usable_members(family: str) -> tuple[list[str], list[dict]]:
     return usable, refused
 
 
+def perceivable_members(members: list[str], scan_seed: int = 0) -> tuple[list[str], list[dict]]:
+    """The members the perception pipeline takes, and those it refuses (with why).
+
+    Each is scanned, reconstructed and labelled once (10-30 s), then cached.
+    """
+    from tqdm import tqdm
+
+    from pour_gym.assets import resolve_asset
+    from pour_gym.perception import PerceptionError, perceived_asset
+
+    taken, refused = [], []
+    for name in tqdm(members, desc="perceive", file=sys.stderr):
+        try:
+            perceived_asset(resolve_asset(name), scan_seed)
+        except PerceptionError as exc:
+            refused.append({"name": name, "reason": exc.why})
+            continue
+        taken.append(name)
+    return taken, refused
+
+
 def family_study(
-    family: str, policies: list[str], episodes: int = 2, seed: int = STUDY_SEED
+    family: str,
+    policies: list[str],
+    episodes: int = 2,
+    seed: int = STUDY_SEED,
+    perceptions: tuple[str, ...] = ("true",),
+    scan_seed: int = 0,
 ) -> dict:
     """Evaluate each policy on every usable member of a family; group by shape.
 
@@ -73,26 +99,41 @@ def family_study(
             (:func:`~pour_gym.agents.evaluate.load_policy`).
         episodes: episodes per member.
         seed: the first episode's seed.
+        perceptions: where the features' geometry comes from, one row per policy each:
+            ``"true"`` (the labelled member) and ``"scan"`` (perceived: scanned,
+            reconstructed and labelled by warping; :mod:`pour_gym.perception`).
+        scan_seed: the scans' noise seed.
 
     Returns:
-        ``{"family", "episodes", "seed", "refused": [...], "policies": {name: {"env",
+        ``{"family", "episodes", "seed", "scan_seed", "refused": [...],
+        "refused_perception": [...], "policies": {label: {"policy", "perception", "env",
         "mean": {success, success_interval, amount_error, spilled}, "members": [rows with
-        "spec"], "buckets": by_bucket(...)}}}``.
+        "spec"], "buckets": by_bucket(...)}}}``; a row with perceived features is labelled
+        ``"<policy> (perceived)"``.
     """
     from pour_gym.objects.procedural import member_spec
+    from pour_gym.perception import PERCEPTIONS
 
     if episodes < 1:
         raise InputError(f"--episodes must be at least 1, not {episodes}")
+    unknown = sorted(set(perceptions) - set(PERCEPTIONS))
+    if unknown or not perceptions:
+        raise InputError(f"--perception takes {', '.join(PERCEPTIONS)}, not {unknown or 'none'}")
     usable, refused = usable_members(family)
     if not usable:
         raise InputError(f"every member of {family} was refused: {refused[0]['reason']}")
-    doc: dict = {"family": family, "episodes": episodes, "seed": seed, "refused": refused}
+    doc: dict = {"family": family, "episodes": episodes, "seed": seed, "scan_seed": scan_seed,
+                 "refused": refused, "refused_perception": []}  # fmt: skip
+    members = {"true": usable}
+    if "scan" in perceptions:
+        members["scan"], doc["refused_perception"] = perceivable_members(usable, scan_seed)
     doc["policies"] = {}
-    for name in policies:
+    for name, perception in [(n, p) for n in policies for p in perceptions]:
         loaded = load_policy(name)
+        kwargs = {**loaded.env_kwargs, "perception": perception, "scan_seed": scan_seed}
         result = evaluate_policy(
-            loaded.policy, loaded.env_id, usable, episodes, seed=seed,
-            env_kwargs=loaded.env_kwargs, trained_on=loaded.trained_on,
+            loaded.policy, loaded.env_id, members[perception], episodes, seed=seed,
+            env_kwargs=kwargs, trained_on=loaded.trained_on,
         )  # fmt: skip
         rows = [{**r, "spec": member_spec(r["source"]).to_dict()} for r in result["rows"]]
         n = len(rows) * episodes
@@ -103,8 +144,10 @@ def family_study(
             for bucket in groups.values():
                 k = bucket["members"] * episodes
                 bucket["success_interval"] = wilson_interval(bucket["success"] * k, k)
-        doc["policies"][name] = {
-            "env": loaded.env_id, "mean": mean, "members": rows, "buckets": buckets,
+        label = name if perception == "true" else f"{name} (perceived)"
+        doc["policies"][label] = {
+            "policy": name, "perception": perception, "env": loaded.env_id, "mean": mean,
+            "members": rows, "buckets": buckets,
         }  # fmt: skip
     return doc
 
@@ -126,8 +169,11 @@ def plot_family_study(doc: dict, path: str | Path) -> Path:
         for k, name in enumerate(names):
             groups = doc["policies"][name]["buckets"][parameter]
             x = np.arange(len(buckets)) + (k - (len(names) - 1) / 2) * 0.15
-            y = np.array([groups[b]["success"] for b in buckets])
-            lo_hi = np.array([groups[b]["success_interval"] for b in buckets])
+            # A bucket may be empty for a policy that saw fewer members (refused scans).
+            shown = [i for i, b in enumerate(buckets) if b in groups]
+            x = x[shown]
+            y = np.array([groups[buckets[i]]["success"] for i in shown])
+            lo_hi = np.array([groups[buckets[i]]["success_interval"] for i in shown])
             # Clipped at 0: a mean of per-container rates may differ from the interval's
             # count-based rate in its last bit.
             yerr = np.maximum([y - lo_hi[:, 0], lo_hi[:, 1] - y], 0.0)
@@ -154,25 +200,30 @@ def write_family_study(doc: dict, out: str | Path) -> Path:
 
 def family_study_report(doc: dict) -> str:
     """Markdown of :func:`family_study`: one row per policy, then each policy's buckets."""
-    total = sum(len(p["members"]) for p in doc["policies"].values()) // max(len(doc["policies"]), 1)
     rows = []
     for name, p in doc["policies"].items():
         m = p["mean"]
         lo, hi = m["success_interval"]
-        rows.append([f"`{name}`", p["env"], f"{m['success']:.2f} [{lo:.2f}, {hi:.2f}]",
-                     f"{m['amount_error']:.1f}", f"{m['spilled']:.2f}"])  # fmt: skip
+        rows.append([f"`{name}`", p["env"], p.get("perception", "true"), str(len(p["members"])),
+                     f"{m['success']:.2f} [{lo:.2f}, {hi:.2f}]", f"{m['amount_error']:.1f}",
+                     f"{m['spilled']:.2f}"])  # fmt: skip
     lines = [
         f"# Generalisation over {doc['family']}",
         "",
         f"Written by `pour-gym report generalisation --family {doc['family']}`: each policy "
-        f"pours from every one of {total} containers into itself, {doc['episodes']} "
-        f"episodes each at seeds {doc['seed']}+ (never used in training). Success is the "
-        "share of episodes that ended with the target amount within tolerance, nothing "
-        "spilled and the source upright; brackets hold a 95 % Wilson interval over the "
-        "episodes. Amount error is |poured - target| in particles.",
+        f"pours from every container it takes into itself, {doc['episodes']} episodes each "
+        f"at seeds {doc['seed']}+ (never used in training). Success is the share of episodes "
+        "that ended with the target amount within tolerance, nothing spilled and the source "
+        "upright; brackets hold a 95 % Wilson interval over the episodes. Amount error is "
+        "|poured - target| in particles. Features: `true`, from each member's labelled "
+        "mesh; `scan`, perceived as a robot would (each member scanned on the simulated "
+        f"turntable with noise seed {doc.get('scan_seed', 0)}, reconstructed and labelled "
+        "by warping the red cup; the physics keeps the true mesh).",
         "",
         markdown_table(
-            ["policy", "env", "success", "amount error", "spilled"], rows, align="llrrr"
+            ["policy", "env", "features", "containers", "success", "amount error", "spilled"],
+            rows,
+            align="lllrrrr",
         ),
         "",
         "![success by shape](success.png)",
@@ -180,6 +231,11 @@ def family_study_report(doc: dict) -> str:
     refused = doc["refused"]
     lines += ["", f"Refused by the labelling or the environments: {len(refused)}."]
     lines += [f"- `{r['name']}`: {r['reason']}" for r in refused]
+    if any(p.get("perception") == "scan" for p in doc["policies"].values()):
+        seen = doc.get("refused_perception", [])
+        lines += ["", f"Refused by the perception pipeline (scan, reconstruction, warping): "
+                  f"{len(seen)}."]  # fmt: skip
+        lines += [f"- `{r['name']}`: {r['reason']}" for r in seen]
     for name, p in doc["policies"].items():
         lines += ["", f"## `{name}` by shape", "", bucket_tables(p["buckets"], VALUES)]
     return "\n".join(lines) + "\n"

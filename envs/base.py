@@ -26,6 +26,7 @@ from pour_gym.assets import (
 from pour_gym.fluid import precompile
 from pour_gym.fluid.pbf import PBFConfig, default_threads
 from pour_gym.fluid.sdf import SignedDistanceField
+from pour_gym.perception import PERCEPTIONS, perceived_asset
 from pour_gym.sim import Camera, Container, World
 from pour_gym.sim.world import CUP_COLORS, FLUIDS, container_field
 
@@ -48,6 +49,11 @@ class PourGymEnv(gym.Env, EzPickle):
         camera: where pictures are taken from.
         reward_weights: the weight of each reward term; a subclass's ``reward_<term>``
             entries in ``info`` are the weighted terms, and they sum to the reward.
+        steps_fluid: whether the env steps the fluid (its kernel's compile starts early).
+        perception: where the observation's container geometry comes from: ``"true"``
+            (the labelled asset) or ``"scan"`` (:mod:`pour_gym.perception`: scanned,
+            reconstructed and labelled by warping; the physics keeps the true mesh).
+        scan_seed: the scan's noise seed under ``perception="scan"``.
     """
 
     metadata: ClassVar[dict] = {"render_modes": RENDER_MODES, "render_fps": 10}
@@ -63,6 +69,8 @@ class PourGymEnv(gym.Env, EzPickle):
         camera: Camera,
         reward_weights: dict[str, float],
         steps_fluid: bool = True,
+        perception: str = "true",
+        scan_seed: int = 0,
     ):
         if fluid not in FLUIDS:
             raise ValueError(f"fluid must be one of {FLUIDS}, not {fluid!r}")
@@ -70,6 +78,8 @@ class PourGymEnv(gym.Env, EzPickle):
             raise ValueError(f"render_mode must be one of {RENDER_MODES} or None")
         if num_threads is not None and int(num_threads) < 1:
             raise ValueError(f"num_threads must be at least 1 (or None), not {num_threads}")
+        if perception not in PERCEPTIONS:
+            raise ValueError(f"perception must be one of {PERCEPTIONS}, not {perception!r}")
         if isinstance(fluid_config, dict):
             fluid_config = PBFConfig(**fluid_config)
         self.reward_weights: dict[str, float] = {}
@@ -80,7 +90,10 @@ class PourGymEnv(gym.Env, EzPickle):
         self.render_mode = render_mode
         self.camera = camera
         self._world: World | None = None
+        self.perception = perception
+        self.scan_seed = int(scan_seed)
         self._assets: dict[str, LabelledAsset] = {}
+        self._seen: dict[str, LabelledAsset] = {}
         self._fields: dict[str, SignedDistanceField] = {}
         self._placed: dict[str, Container] = {}
         self._names: dict[str, str] = {}  # role -> the container's spec, as given
@@ -147,6 +160,21 @@ class PourGymEnv(gym.Env, EzPickle):
         if name not in self._assets:
             self._assets[name] = check_open(resolve_asset(name), name)
         return self._assets[name]
+
+    def seen(self, name: str) -> LabelledAsset:
+        """The container as the observation knows it.
+
+        The labelled asset itself, or (with ``perception="scan"``) what a scan of it gave:
+        the reconstruction, labelled by warping (computed once, then cached on disk).
+
+        Raises:
+            PerceptionError: a container the perception pipeline cannot take (named).
+        """
+        if self.perception == "true":
+            return self.asset(name)
+        if name not in self._seen:
+            self._seen[name] = perceived_asset(self.asset(name), self.scan_seed)
+        return self._seen[name]
 
     def _load(self, name: str) -> tuple[LabelledAsset, SignedDistanceField]:
         """The asset and its signed-distance field (computed once per environment)."""

@@ -104,6 +104,15 @@ class PourEnv(PourGymEnv):
     either mode (the space keeps its shape): a learner kept blind to, say, the containers'
     sizes, which are constants when it trains on one cup.
 
+    What the observation knows of the containers' shapes (rims, heights, volumes, lip
+    points, bounding boxes) comes from their labelled assets, or with
+    ``perception="scan"`` from what a robot would have: each container scanned on the
+    simulated turntable (noise seed ``scan_seed``), reconstructed and labelled by warping
+    (:mod:`pour_gym.perception`, cached per container and seed; 10-30 s the first time).
+    The fluid, the counts and the reward always use the true meshes. A container the
+    pipeline cannot take (a reconstruction closed at the top) is refused at ``reset``
+    with a ``PerceptionError`` naming it.
+
     ## Rewards
     Per step, with T the target amount in particles, each term times its weight:
     ``progress`` = increase of min(poured, T) / T; ``overshoot`` = -(increase of
@@ -162,6 +171,8 @@ class PourEnv(PourGymEnv):
     | ``tilt_weight`` | float | 0.0 | weight of ``tilt`` |
     | ``control_weight`` | float | 0.0 | weight of ``control`` |
     | ``hide`` | list of str | () | observation entries (by name) that read 0 |
+    | ``perception`` | str | ``"true"`` | the features' geometry: ``"true"`` or ``"scan"`` |
+    | ``scan_seed`` | int | 0 | the scan's noise seed (``perception="scan"``) |
     | ``render_mode`` | str or None | None | ``"rgb_array"`` or ``"human"`` |
     | ``holder`` | str | ``"free"`` | what holds the source (:mod:`pour_gym.envs.holders`) |
     | ``**holder_kwargs`` | | | the holder's own arguments |
@@ -184,7 +195,8 @@ class PourEnv(PourGymEnv):
       ``overshoot_weight=1.0`` (progress and overshoot together then sum to minus the
       change of |poured - T| / T: pouring too much costs what pouring too little does,
       and pouring everything no longer costs more than never pouring);
-      ``success_weight=2.0``. Argument ``hide`` added (both versions).
+      ``success_weight=2.0``. Arguments ``hide``, ``perception`` and ``scan_seed`` added
+      (both versions; the defaults change nothing).
     * v0 (this release): the fluid takes substeps by the CFL bound and puts back particles
       that tunnelled into a wall (``info["fluid_corrections"]``), so no action raises; an
       episode ends after a pour only when ``pour_threshold`` particles stayed out for
@@ -235,6 +247,8 @@ class PourEnv(PourGymEnv):
         tilt_weight: float = 0.0,
         control_weight: float = 0.0,
         hide: tuple[str, ...] | list[str] = (),
+        perception: str = "true",
+        scan_seed: int = 0,
         render_mode: str | None = None,
         holder: str = "free",
         **holder_kwargs,
@@ -266,6 +280,8 @@ class PourEnv(PourGymEnv):
             tilt_weight=tilt_weight,
             control_weight=control_weight,
             hide=hide,
+            perception=perception,
+            scan_seed=scan_seed,
             render_mode=render_mode,
             holder=holder,
             **holder_kwargs,
@@ -290,6 +306,8 @@ class PourEnv(PourGymEnv):
                 "control": control_weight,
                 **self.holder.reward_weights(),
             },
+            perception=perception,
+            scan_seed=scan_seed,
         )
         self._check_obs_mode(obs_mode)
         if source_particles is not None and source_particles < 100:
@@ -528,8 +546,11 @@ class PourEnv(PourGymEnv):
         self._check_obs_mode(obs_mode)
         c = self._counts
         t = self.target_amount
-        gs: ContainerGeometry = self.source.asset.geometry
-        gt: ContainerGeometry = self.target.asset.geometry
+        # What the policy knows of the containers (perceived, with perception="scan"); the
+        # counts and the reward come from the physics, which has the true meshes.
+        seen_s, seen_t = self.seen(self._names["source"]), self.seen(self._names["target"])
+        gs: ContainerGeometry = seen_s.geometry
+        gt: ContainerGeometry = seen_t.geometry
         v = self.world.particle_volume
         if obs_mode == "features":
             centre = self.target.to_world(gt.rim_center)
@@ -563,8 +584,8 @@ class PourEnv(PourGymEnv):
                 c["in_source"] / t,
             ]
         else:
-            size_s = np.ptp(self.source.asset.mesh.bounds, axis=0)
-            size_t = np.ptp(self.target.asset.mesh.bounds, axis=0)
+            size_s = np.ptp(seen_s.mesh.bounds, axis=0)
+            size_t = np.ptp(seen_t.mesh.bounds, axis=0)
             n0 = self.fill
             obs = [
                 *self.lip,

@@ -23,6 +23,7 @@ from __future__ import annotations
 import json
 import re
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from importlib.resources import files
 from pathlib import Path
@@ -32,8 +33,15 @@ import trimesh
 
 from pour_gym.errors import ClosedContainerError, InputError, NoWaterError
 from pour_gym.features import ContainerGeometry, container_cavity, container_geometry
-from pour_gym.mesh.fileio import MESH_SUFFIXES, load_mesh, validate_mesh
+from pour_gym.mesh.fileio import (
+    CLOUD_SUFFIXES,
+    MESH_SUFFIXES,
+    load_mesh,
+    load_point_cloud,
+    validate_mesh,
+)
 from pour_gym.mesh.measure import opening_problem
+from pour_gym.mesh.reconstruct import RECONSTRUCTION_VERSION
 from pour_gym.objects import OBJECT_NAMES, ContainerModel, ObjectSpec, build_object, procedural
 from pour_gym.parts import PART_NAMES, Part
 from pour_gym.report.tables import markdown_table
@@ -203,6 +211,7 @@ def label_container(
     method: str = "best",
     scale: float = 1.0,
     allow_closed: bool = False,
+    name: str | None = None,
 ) -> LabelledAsset:
     """Label a container's parts by warping a labelled source onto it.
 
@@ -214,6 +223,8 @@ def label_container(
         scale: factor to metres for mesh files.
         allow_closed: label a container whose opening is closed (a capped scan) anyway;
             its asset records why it looks closed, and environments refuse it.
+        name: the asset's name (default: the catalogue name or the file's stem; "mesh"
+            for a mesh given as such).
 
     Returns:
         The labelled asset, in its canonical frame.
@@ -226,7 +237,8 @@ def label_container(
     if method not in ("best", "thesis"):
         raise InputError(f"unknown method {method!r}; use 'best' or 'thesis'")
     t0 = time.perf_counter()
-    name, mesh, truth = resolve_target(target, scale)
+    found, mesh, truth = resolve_target(target, scale)
+    name = name or found
     validate_mesh(mesh, name=name)
     src = _source_model(source)
     # A mesh that holds no water however it is turned has no opening to find "up" by: with
@@ -370,8 +382,8 @@ def expand_containers(spec: str | Path | list | tuple) -> tuple[str, ...]:
     Args:
         spec: ``"train"``, ``"test"``, ``"all"``, ``"real"``, a procedural family
             (``"procedural:test"``, see :mod:`pour_gym.objects.procedural`), a catalogue
-            name, a procedural member, an asset directory, a mesh file, a comma-separated
-            string or a list of them.
+            name, a procedural member, an asset directory, a mesh or point cloud file, a
+            comma-separated string or a list of them.
 
     Returns:
         The containers, in order, as strings.
@@ -394,7 +406,8 @@ def expand_containers(spec: str | Path | list | tuple) -> tuple[str, ...]:
         raise InputError("no containers given; use a split (train, test, all, real) or names")
     for item in items:
         p = Path(item)
-        if item in CATALOGUE or p.is_dir() or (p.is_file() and p.suffix.lower() in MESH_SUFFIXES):
+        readable = (*MESH_SUFFIXES, *CLOUD_SUFFIXES)
+        if item in CATALOGUE or p.is_dir() or (p.is_file() and p.suffix.lower() in readable):
             continue
         if item.startswith(procedural.PREFIX):
             procedural.member_spec(item)  # an InputError naming what is wrong with it
@@ -402,60 +415,117 @@ def expand_containers(spec: str | Path | list | tuple) -> tuple[str, ...]:
         raise InputError(
             f"{item!r} is not a container: use a split ({', '.join(SPLITS)}), a procedural "
             f"family (procedural:train, procedural:test, procedural:N@SEED), a catalogue "
-            f"name ({', '.join(CATALOGUE)}), an asset directory or a mesh file "
-            f"({', '.join(MESH_SUFFIXES)})"
+            f"name ({', '.join(CATALOGUE)}), an asset directory, a mesh file "
+            f"({', '.join(MESH_SUFFIXES)}) or a point cloud file ({', '.join(CLOUD_SUFFIXES)})"
         )
     return items
 
 
-def resolve_asset(spec: str | Path, cache_dir: str | Path | None = None) -> LabelledAsset:
-    """A labelled asset from a catalogue name, asset directory, procedural member or mesh file.
-
-    A mesh file or a procedural member (``procedural:test#7``) is labelled by warping the
-    red cup onto it (about a second for 20k vertices); the result is cached under
-    ``cache_dir`` by the file's content (a member: by its name and the generator's
-    version), so the next call loads it.
+def cached_asset(
+    key: bytes, stem: str, make: Callable[[], LabelledAsset], cache_dir: str | Path | None = None
+) -> LabelledAsset:
+    """A labelled asset from the cache, made (and kept there) on the first call.
 
     Args:
-        spec: catalogue name, asset directory, procedural member, or mesh file (in m, any
-            pose).
+        key: what the asset is a function of (file bytes, names, versions, settings).
+        stem: the start of its folder's name, for people reading the cache.
+        make: makes the asset when it is not cached.
+        cache_dir: where assets are kept (default: the user cache's ``assets``).
+
+    Returns:
+        The asset as loaded from its folder (so a made asset and a cached one are the
+        same numbers).
+    """
+    import hashlib
+    import os
+    import shutil
+
+    from pour_gym.io.cache import cache_dir as user_cache
+
+    root = Path(cache_dir) if cache_dir is not None else user_cache("assets")
+    stem = re.sub(r"[^A-Za-z0-9]+", "_", stem)
+    target = root / f"{stem}_{hashlib.sha256(key).hexdigest()[:16]}"
+    if not (target / "meta.json").is_file():
+        # Written aside and renamed, so that environments in parallel processes never
+        # read a half-written asset.
+        tmp = root / f".{target.name}.{os.getpid()}"
+        write_asset(make(), tmp, picture=False)
+        try:
+            tmp.rename(target)
+        except OSError:  # another process got there first
+            shutil.rmtree(tmp, ignore_errors=True)
+    return load_asset(target)
+
+
+def is_point_cloud_file(path: str | Path) -> bool:
+    """Whether a file holds a point cloud rather than a mesh (a PLY with no faces is one)."""
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix not in CLOUD_SUFFIXES:
+        return False
+    if suffix not in MESH_SUFFIXES:
+        return True
+    with open(path, "rb") as fh:  # a PLY: its header says whether it has faces
+        header = fh.read(4096).split(b"end_header")[0].decode("ascii", "replace")
+    faces = re.search(r"element\s+face\s+(\d+)", header)
+    return faces is None or int(faces.group(1)) == 0
+
+
+def label_point_cloud(path: str | Path) -> LabelledAsset:
+    """A container from a point cloud file: reconstructed (chapter 3), then labelled.
+
+    Args:
+        path: a .ply (without faces), .pcd, .xyz or .npy file in m, the container upright.
+
+    Raises:
+        InputError: a cloud that cannot be reconstructed (its units, say) or labelled.
+    """
+    from pour_gym.mesh.reconstruct import reconstruct
+
+    cloud = load_point_cloud(path)
+    name = Path(path).stem
+    try:
+        return label_container(reconstruct(cloud).mesh, name=name)
+    except ClosedContainerError as exc:
+        raise InputError(
+            f"the point cloud {path} gave a closed surface ({exc.problem}); a cloud whose "
+            "points do not show the opening cannot be made a container"
+        ) from None
+
+
+def resolve_asset(spec: str | Path, cache_dir: str | Path | None = None) -> LabelledAsset:
+    """A labelled asset from a name, an asset directory, a mesh file or a point cloud file.
+
+    A catalogue name or an asset directory is loaded as it is. A mesh file or a procedural
+    member (``procedural:test#7``) is labelled by warping the red cup onto it (about a
+    second for 20k vertices); a point cloud file is reconstructed first (chapter 3: 5-15
+    s). The result is cached under ``cache_dir`` by the file's content (a member: by its
+    name and the generator's version), so the next call loads it.
+
+    Args:
+        spec: catalogue name, asset directory, procedural member, mesh file (in m, any
+            pose) or point cloud file (in m, upright).
         cache_dir: where labelled user meshes are kept (default: the user cache).
 
     Raises:
-        InputError: not a container, or a mesh that cannot be labelled.
+        InputError: not a container, or a mesh or cloud that cannot be labelled.
     """
-    import hashlib
-
     s = str(spec)
     p = Path(s)
     if s in CATALOGUE or p.is_dir():
         return load_asset(s)
     if procedural.is_member(s):
         key = f"{s} g{procedural.GENERATOR_VERSION} v{LABELLING_VERSION}".encode()
-        stem = re.sub(r"[^A-Za-z0-9]+", "_", s)
-    elif p.is_file():
-        key, stem = p.read_bytes() + f"v{LABELLING_VERSION}".encode(), p.stem
-    else:
-        raise InputError(
-            f"no container {s!r}: not a catalogue name, procedural member, asset directory or file"
-        )
-    from pour_gym.io.cache import cache_dir as user_cache
-
-    root = Path(cache_dir) if cache_dir is not None else user_cache("assets")
-    target = root / f"{stem}_{hashlib.sha256(key).hexdigest()[:16]}"
-    if not (target / "meta.json").is_file():
-        import os
-        import shutil
-
-        # Written aside and renamed, so that environments in parallel processes never
-        # read a half-written asset.
-        tmp = root / f".{target.name}.{os.getpid()}"
-        write_asset(label_container(s), tmp, picture=False)
-        try:
-            tmp.rename(target)
-        except OSError:  # another process got there first
-            shutil.rmtree(tmp, ignore_errors=True)
-    return load_asset(target)
+        return cached_asset(key, s, lambda: label_container(s), cache_dir)
+    if p.is_file() and is_point_cloud_file(p):
+        key = p.read_bytes() + f"cloud r{RECONSTRUCTION_VERSION} v{LABELLING_VERSION}".encode()
+        return cached_asset(key, p.stem, lambda: label_point_cloud(p), cache_dir)
+    if p.is_file():
+        key = p.read_bytes() + f"v{LABELLING_VERSION}".encode()
+        return cached_asset(key, p.stem, lambda: label_container(s), cache_dir)
+    raise InputError(
+        f"no container {s!r}: not a catalogue name, procedural member, asset directory or file"
+    )
 
 
 def warping_tables(reports: dict[str, dict]) -> str:

@@ -27,7 +27,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("pour_gym.agents",),
     ("pour_gym",),  # the package's __init__: it registers the environments
     ("pour_gym.envs",),
-    ("pour_gym.sim",),
+    ("pour_gym.sim", "pour_gym.perception"),
     ("pour_gym.fluid", "pour_gym.assets"),
     ("pour_gym.warp", "pour_gym.features"),
     ("pour_gym.mesh",),

@@ -119,6 +119,15 @@ def build_parser() -> argparse.ArgumentParser:
         "--episodes", type=int, default=2, help="generalisation --family: episodes per container"
     )
     p.add_argument(
+        "--perception",
+        default="true",
+        help="generalisation --family: the features' geometry, comma-separated: true (the "
+        "labelled mesh), scan (scanned, reconstructed, warped: as a robot perceives it)",
+    )
+    p.add_argument(
+        "--scan-seed", type=int, default=0, help="generalisation --family: the scans' noise seed"
+    )
+    p.add_argument(
         "--seed", type=int, default=60_000, help="generalisation --family: first episode's seed"
     )
 

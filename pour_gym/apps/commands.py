@@ -214,7 +214,9 @@ def cmd_report(args: argparse.Namespace) -> Output:
         if not args.out:
             raise InputError("report generalisation --family needs --out DIR")
         policies = [name for name in args.policies.split(",") if name]
-        doc = family_study(args.family, policies, args.episodes, args.seed)
+        perceptions = tuple(p for p in args.perception.split(",") if p)
+        doc = family_study(args.family, policies, args.episodes, args.seed, perceptions,
+                           args.scan_seed)  # fmt: skip
         out = write_family_study(doc, args.out)
         return (doc, lambda: (out / "report.md").read_text())
     if args.what == "baselines":

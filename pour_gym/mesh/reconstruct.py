@@ -41,6 +41,10 @@ from pour_gym.mesh.scan import PointCloud, estimate_normals
 InnerModel = Literal["thesis", "offset"]
 
 
+# Bumped when the same cloud reconstructs to another mesh (cached reconstructions go stale).
+RECONSTRUCTION_VERSION = 1
+
+
 @dataclass(frozen=True)
 class ReconstructConfig:
     """Settings of the reconstruction.

@@ -1,0 +1,178 @@
+"""Perceived containers: what a robot that scanned a container knows of its geometry.
+
+The thesis's robot met an unknown container the way this module does: it scanned it (a
+Kinect on a turntable), built a mesh from the points (chapter 3), warped a labelled cup
+onto the mesh (chapter 4) and computed its features from those labels (chapter 5.1). An
+environment with ``perception="scan"`` reads its features from the asset made here while
+its physics keeps the true mesh: the policy sees what a scan tells, the water does what
+the real container makes it do.
+
+The perceived asset is in the true asset's frame (the scan is taken of the upright
+container where it stands, so the reconstruction needs no alignment), so that its rim,
+lip and volumes plug into the features wherever the true ones did. It is a function of
+the true asset, the scan's settings and seed, and the pipeline's versions, and is cached
+by them (:func:`pour_gym.assets.cached_asset`): a container is scanned once per seed.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field, replace
+
+import numpy as np
+
+from pour_gym.assets import (
+    LABELLING_VERSION,
+    LabelledAsset,
+    cached_asset,
+    label_container,
+)
+from pour_gym.errors import ClosedContainerError, InputError
+from pour_gym.features import container_geometry
+from pour_gym.mesh.reconstruct import RECONSTRUCTION_VERSION, ReconstructConfig, reconstruct
+from pour_gym.mesh.scan import ScanConfig, turntable_scan
+
+PERCEPTIONS = ("true", "scan")
+# Bumped when the same container, settings and seed are perceived otherwise.
+PERCEPTION_VERSION = 1
+
+
+class PerceptionError(InputError):
+    """A container the perception pipeline cannot take (its reconstruction is closed, say).
+
+    Args:
+        name: the container.
+        why: what went wrong.
+    """
+
+    def __init__(self, name: str, why: str):
+        super().__init__(
+            f"perception='scan' cannot take {name}: {why}. Use perception='true' for it, or "
+            "leave it out of the containers"
+        )
+        self.name = name
+        self.why = why
+
+
+@dataclass(frozen=True)
+class ScanPerception:
+    """How a container is perceived: the scan and the reconstruction's settings.
+
+    Attributes:
+        scan: the simulated turntable scan (its ``seed`` is replaced by the perception's).
+        reconstruct: the reconstruction (chapter 3), with the thesis's kernel width.
+        narrower: kernel widths (m) to try, in order, where the surface of the one before
+            closes the opening: a kernel of 1 cm bridges the 4-5 cm mouth of a tall,
+            narrow container that the scan sees only from outside.
+        source: the labelled cup warped onto the reconstruction.
+    """
+
+    scan: ScanConfig = field(default_factory=ScanConfig)
+    reconstruct: ReconstructConfig = field(default_factory=ReconstructConfig)
+    narrower: tuple[float, ...] = (0.006,)
+    source: str = "red_cup"
+
+    def to_dict(self) -> dict:
+        """The settings as a JSON-serialisable dict."""
+        return asdict(self)
+
+
+def perceive(asset: LabelledAsset, seed: int = 0, how: ScanPerception | None = None):
+    """The container as a scan sees it: scanned, reconstructed and labelled by warping.
+
+    Args:
+        asset: the true container, upright in its frame.
+        seed: the scan's noise seed.
+        how: the settings (default :class:`ScanPerception`).
+
+    Returns:
+        A :class:`~pour_gym.assets.LabelledAsset` whose mesh is the reconstruction, in the
+        true asset's frame, with warped labels and the geometry they give; its ``meta``
+        holds the perceived geometry beside the true one.
+
+    Raises:
+        PerceptionError: the reconstruction cannot be labelled (closed at the top, no
+            cavity the warp can map onto).
+    """
+    how = how or ScanPerception()
+    scan = ScanConfig(**{**asdict(how.scan), "seed": int(seed)})
+    cloud = turntable_scan(asset.mesh, asset.labels, scan)
+    name = f"{asset.name} (scan {seed})"
+    for sigma in (how.reconstruct.sigma, *how.narrower):
+        settings = replace(how.reconstruct, sigma=sigma)
+        mesh = reconstruct(cloud, settings).mesh
+        try:
+            labelled = label_container(mesh, source=how.source, name=name)
+            break
+        except ClosedContainerError as exc:
+            closed = exc.problem  # try a narrower kernel, if there is one left
+        except InputError as exc:
+            raise PerceptionError(asset.name, str(exc)) from None
+    else:
+        widths = ", ".join(f"{1000 * w:g}" for w in (how.reconstruct.sigma, *how.narrower))
+        raise PerceptionError(
+            asset.name, f"its reconstruction is closed with kernels of {widths} mm ({closed})"
+        )
+    # The labels are the reconstruction's vertices', in order: its geometry in the frame
+    # the scan was taken in, which is the true asset's.
+    geometry = container_geometry(mesh, labelled.labels)
+    return LabelledAsset(
+        name=labelled.name,
+        mesh=mesh,
+        labels=labelled.labels,
+        geometry=geometry,
+        meta={
+            "name": labelled.name,
+            "labels": labelled.meta["labels"],
+            **geometry.to_dict(),
+            "perceived_from": asset.name,
+            "true": asset.geometry.to_dict(),
+            "perception": {**how.to_dict(), "seed": int(seed), "sigma": settings.sigma},
+            "points": len(cloud.points),
+            "source": labelled.meta["source"],
+        },
+    )
+
+
+def perceived_asset(
+    asset: LabelledAsset,
+    seed: int = 0,
+    how: ScanPerception | None = None,
+    cache_dir=None,
+) -> LabelledAsset:
+    """:func:`perceive`, cached by the container's mesh and labels, the settings and seed.
+
+    Raises:
+        PerceptionError: as :func:`perceive` (not cached: asked again, it tries again).
+    """
+    how = how or ScanPerception()
+    key = b"".join(
+        [
+            np.ascontiguousarray(asset.mesh.vertices, dtype=np.float64).tobytes(),
+            np.ascontiguousarray(asset.mesh.faces, dtype=np.int64).tobytes(),
+            np.ascontiguousarray(asset.labels).tobytes(),
+            repr(sorted(how.to_dict().items())).encode(),
+            f"seed {seed} p{PERCEPTION_VERSION} r{RECONSTRUCTION_VERSION}".encode(),
+            f" v{LABELLING_VERSION}".encode(),
+        ]
+    )
+    return cached_asset(
+        key, f"{asset.name}_scan{seed}", lambda: perceive(asset, seed, how), cache_dir
+    )
+
+
+def geometry_error(true: LabelledAsset, seen: LabelledAsset) -> dict[str, float]:
+    """How far a perceived container's geometry is from the true one's.
+
+    Returns:
+        Relative errors of the rim radius, height, container (hull) and cavity volumes, and
+        the rim centre's and lip point's distances in m.
+    """
+    t, s = true.geometry, seen.geometry
+    return {
+        "rim_radius": s.rim_radius / t.rim_radius - 1.0,
+        "height": s.height / t.height - 1.0,
+        "container_volume": s.container_volume / t.container_volume - 1.0,
+        "cavity_volume": s.cavity_volume / t.cavity_volume - 1.0,
+        "rim_center_m": float(np.linalg.norm(s.rim_center - t.rim_center)),
+        "lip_height_m": float(s.lip_point[2] - t.lip_point[2]),
+    }
