@@ -50,11 +50,14 @@ def training_kind(config: dict) -> str:
 
 
 def model_kind(config: dict) -> str:
-    """Which of a run's models was evaluated: the last step's, or the best curve point's.
+    """Which of a run's models was evaluated, and how it acted.
 
-    ``"last step"`` or, for a run with ``--keep-best``, ``"best curve point"``.
+    ``"last step"`` or, for a run with ``--keep-best``, ``"best curve point"``; with
+    ``--stochastic-eval``, followed by ``", sampled actions"`` (the policy's samples, not
+    its mean action).
     """
-    return "best curve point" if config.get("keep_best") else "last step"
+    which = "best curve point" if config.get("keep_best") else "last step"
+    return which + (", sampled actions" if config.get("stochastic_eval") else "")
 
 
 def _wall_seconds(run_dir: Path, result: dict) -> float | None:

@@ -3,11 +3,13 @@
 A policy is anything called with an observation that returns an action: an SB3 model
 wrapped by :func:`sb3_policy`, the scripted policy, the proof of concept's policies, a
 searched policy. Policies with state across steps also have ``reset()``, called at the start
-of every episode (the :class:`Policy` protocol).
+of every episode (the :class:`Policy` protocol); a policy that samples its actions takes
+the episode's seed there (``reset(seed=...)``), so that an episode is the same every time.
 """
 
 from __future__ import annotations
 
+import inspect
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -110,7 +112,10 @@ def rollout(
     """
     obs, info = env.reset(seed=seed, options=options)
     if hasattr(policy, "reset"):
-        policy.reset()
+        if "seed" in inspect.signature(policy.reset).parameters:
+            policy.reset(seed=seed)  # a policy that samples: the episode's seed
+        else:
+            policy.reset()
     episode = Episode(info=info, reward=0.0, steps=0, reset_info=info)
     if frames:
         episode.frames.append(env.render())
@@ -137,14 +142,21 @@ def rollout(
     return episode
 
 
-def sb3_policy(model) -> Callable[[np.ndarray], np.ndarray]:
-    """An SB3 model (with its observation normaliser, if it has one) as a deterministic policy.
+def sb3_policy(model, deterministic: bool | None = None) -> Callable[[np.ndarray], np.ndarray]:
+    """An SB3 model (with its observation normaliser, if it has one) as a policy.
 
     Args:
         model: a loaded SB3 algorithm, or a :class:`~pour_gym.agents.training.Run`.
+        deterministic: act with the distribution's mean (True) or sample the actions
+            (False: the policy that PPO optimises; see :class:`SampledPolicy`). None: as
+            the run's config says (``stochastic_eval``), else the mean.
     """
     normalise = getattr(model, "normalise", None)
     predictor = getattr(model, "model", model)
+    if deterministic is None:
+        deterministic = not getattr(model, "config", {}).get("stochastic_eval", False)
+    if not deterministic:
+        return SampledPolicy(predictor, normalise)
 
     def act(obs: np.ndarray) -> np.ndarray:
         x = normalise(obs) if normalise is not None else obs
@@ -152,3 +164,35 @@ def sb3_policy(model) -> Callable[[np.ndarray], np.ndarray]:
         return action
 
     return act
+
+
+class SampledPolicy:
+    """An SB3 policy that samples its actions, from a seed per episode.
+
+    SB3 samples with torch's global generator; each step here draws in a forked copy of
+    it, seeded from the episode's generator, so that an episode is the same for the same
+    seed and nothing else's random numbers change.
+
+    Args:
+        predictor: the SB3 algorithm.
+        normalise: the observation normaliser, or None.
+    """
+
+    def __init__(self, predictor, normalise: Callable[[np.ndarray], np.ndarray] | None):
+        self.predictor = predictor
+        self.normalise = normalise
+        self.rng = np.random.default_rng(0)
+
+    def reset(self, seed: int | None = None) -> None:
+        """Start an episode: its actions' noise from ``seed``."""
+        self.rng = np.random.default_rng(seed)
+
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        """A sampled action for an observation."""
+        import torch
+
+        x = self.normalise(obs) if self.normalise is not None else obs
+        with torch.random.fork_rng(devices=[]):
+            torch.manual_seed(int(self.rng.integers(2**62)))
+            action, _ = self.predictor.predict(x, deterministic=False)
+        return action

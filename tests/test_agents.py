@@ -278,6 +278,35 @@ def test_closed_loop_poc_pours_twenty_particles():
         run_poc(policy="open")
 
 
+def test_a_sampling_policy_is_the_same_for_the_same_seed_and_leaves_torch_alone():
+    """--stochastic-eval: a PPO model's sampled actions, seeded per episode; the same
+    seed gives the same episode, another seed another one, and torch's global generator
+    is where it was."""
+    import gymnasium as gym
+    import torch
+
+    from pour_gym.agents.rollout import SampledPolicy, rollout, sb3_policy
+    from pour_gym.agents.training import load_run
+
+    run = load_run("pour-v1-red-cup-features")
+    assert not isinstance(sb3_policy(run), SampledPolicy)  # its config: the mean action
+    sampled = sb3_policy(run, deterministic=False)
+    env = gym.make("PourGym/Pour-v1", objects="red_cup", source_particles=300,
+                   amount_range=(40, 80), max_episode_steps=20)  # fmt: skip
+
+    def actions_of(policy, seed: int) -> np.ndarray:
+        taken = []
+        rollout(env, policy, seed=seed, on_step=lambda step: taken.append(step.action))
+        return np.array(taken)
+
+    state = torch.random.get_rng_state()
+    actions = [actions_of(sampled, seed) for seed in (3, 3, 4)]
+    assert torch.equal(torch.random.get_rng_state(), state)
+    assert np.array_equal(actions[0], actions[1])
+    assert not np.array_equal(actions[0][:5], actions[2][:5])
+    assert not np.array_equal(actions[0][0], actions_of(sb3_policy(run), 3)[0])
+
+
 def test_keep_best_keeps_the_most_successful_then_the_closest_point(tmp_path):
     from pour_gym.agents.training import keep_if_best
     from pour_gym.envs import POUR, task_of

@@ -82,6 +82,13 @@ class TrainConfig:
             "lowest amount error, or the highest return), not the last step"
         ),
     )
+    stochastic_eval: bool = field(
+        default=False,
+        metadata=_doc(
+            "evaluate (and draw the learning curve with) the policy's sampled actions, seeded "
+            "per episode, instead of its mean action: the policy PPO optimises"
+        ),
+    )
     recurve: bool = field(
         default=False,
         metadata=_doc(

@@ -62,7 +62,8 @@ def record_curve_point(
     from stable_baselines3.common.vec_env import VecNormalize
 
     normaliser = venv if isinstance(venv, VecNormalize) else None
-    policy = sb3_policy(Run(model=model, config={}, normaliser=normaliser))
+    run = Run(model=model, config={}, normaliser=normaliser)
+    policy = sb3_policy(run, deterministic=not config.stochastic_eval)
     task = task_of(config.env)
     env = make(config.env, **env_kwargs)
     seed = config.eval_seed + CURVE_SEED_OFFSET
