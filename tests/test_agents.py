@@ -190,6 +190,8 @@ def test_pour_v1_recipes_learn_from_the_reward_a_few_hundred_steps(algo, tmp_pat
     assert doc["train_seconds"] > 0
     config = json.loads((out / "config.json").read_text())
     assert config["demonstrations"] is None and config["env"] == "PourGym/Pour-v1"
+    # PPO's recipe scores the policy by its sampled actions (seeded), the others by the mean.
+    assert config["stochastic_eval"] is (algo == "ppo")
     for row in doc["rows"]:  # every episode ended one way or another
         shares = [v for k, v in row.items() if k.startswith("outcome_")]
         assert len(shares) == 6 and sum(shares) == pytest.approx(1.0)

@@ -1,6 +1,7 @@
 """Learning curves and the callbacks of a training run.
 
-A curve point is the deterministic policy's episodes on the training containers, scored by
+A curve point is the policy's episodes on the training containers (its mean action, or its
+seeded samples with ``--stochastic-eval``), scored by
 the env's task (:meth:`pour_gym.envs.task.Task.metrics`: success, return, and for a
 pouring task the amount error and the spill), appended to ``curve.csv`` (against
 environment steps) or ``bc_curve.csv`` (against behaviour-cloning gradient steps);
@@ -90,9 +91,11 @@ def record_curve_from_checkpoints(config: TrainConfig, out: Path, env_kwargs: di
     At every ``curve_every`` steps up to ``timesteps``, the checkpoint's policy (with the
     normaliser saved beside it) plays ``curve_episodes`` episodes from the curve's seeds.
     That is the curve the run would have recorded with these settings: a curve point's
-    episodes run in an env of their own with the deterministic policy, and change nothing
-    in the training. (More episodes a point make ``--keep-best``'s choice less a matter of
-    luck; the evaluation's seeds stay unseen.)
+    episodes run in an env of their own, with the policy's mean action (or, with
+    ``--stochastic-eval``, its samples from seeds of their own), and change nothing in the
+    training. More episodes a point make ``--keep-best``'s choice less a matter of luck;
+    ``--stochastic-eval`` draws the curve of the policy the evaluation will score. The
+    evaluation's seeds stay unseen.
 
     Args:
         config: the run's config (env, curve steps and episodes, seeds, algorithm).

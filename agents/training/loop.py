@@ -93,6 +93,8 @@ def train(config: TrainConfig) -> dict:
             f"unknown environment {config.env!r}; use one of {', '.join(ENV_IDS)}"
         ) from None
     recipe = load_recipe(config.env, config.algo, cls, config.overrides)
+    if recipe.stochastic_eval:  # the recipe's way to score its policy; recorded as the run's
+        config = dataclasses.replace(config, stochastic_eval=True)
     params = dict(recipe.hyperparameters)
     demos_cfg = recipe.demonstrations
     if demos_cfg:

@@ -31,6 +31,7 @@ RECIPE_KEYS = {
     "env_wrapper": "wrappers around each training env, outermost last (rl-zoo3's convention)",
     "torch_threads": "torch's threads (1: the fluid keeps the other cores)",
     "demonstrations": "the scripted expert's episodes to start from (see DemoConfig)",
+    "stochastic_eval": "evaluate and draw the curve with the policy's sampled actions (seeded)",
 }
 
 
@@ -84,8 +85,8 @@ class Recipe:
 
     Attributes:
         hyperparameters: the algorithm's constructor arguments.
-        n_envs, policy, normalize, env_kwargs, env_wrapper, torch_threads, demonstrations:
-            the training's own keys (:data:`RECIPE_KEYS`).
+        n_envs, policy, normalize, env_kwargs, env_wrapper, torch_threads, demonstrations,
+            stochastic_eval: the training's own keys (:data:`RECIPE_KEYS`).
     """
 
     hyperparameters: dict
@@ -96,6 +97,7 @@ class Recipe:
     env_wrapper: list = field(default_factory=list)
     torch_threads: int = 1
     demonstrations: DemoConfig | None = None
+    stochastic_eval: bool = False
 
     def wrapper(self) -> Callable[[gym.Env], gym.Env] | None:
         """A function that wraps an env in :attr:`env_wrapper`'s wrappers (None if none).
@@ -151,6 +153,7 @@ def load_recipe(env_id: str, algo: str, algorithm_class, overrides: dict | None 
         env_wrapper=list(_as_list(own.get("env_wrapper"))),
         torch_threads=int(own.get("torch_threads", 1)),
         demonstrations=DemoConfig.from_recipe(demos) if demos else None,
+        stochastic_eval=bool(own.get("stochastic_eval", False)),
     )
     wrapper_specs(recipe.env_wrapper)  # refuse a bad wrapper before any work
     return recipe
