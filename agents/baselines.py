@@ -173,12 +173,13 @@ def _plot(groups: dict[tuple, list[dict]], path: Path) -> Path:
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(8, 4.5))
+    drawn: set[tuple] = set()
     for key, runs in sorted(groups.items()):
-        if key[-1] != "last step" and (*key[:-1], "last step") in groups:
-            continue  # the same runs' curves, another of their models evaluated
         curves = [r["curve"] for r in runs if r["curve"]]
-        if not curves:
-            continue
+        shapes = {(tuple(c["timesteps"]), tuple(c["success"])) for c in curves}
+        if not curves or shapes <= drawn:
+            continue  # the same runs' curves, another of their models evaluated
+        drawn |= shapes
         steps = sorted(set.intersection(*(set(c["timesteps"]) for c in curves)))
         if not steps:
             continue
@@ -186,9 +187,10 @@ def _plot(groups: dict[tuple, list[dict]], path: Path) -> Path:
             [[dict(zip(c["timesteps"], c["success"], strict=True))[x] for x in steps]
              for c in curves]
         )  # fmt: skip
-        env, algo, mode, kind, _ = key
+        env, algo, mode, kind, model = key
         seeds = f"{len(curves)} seed" + ("s" if len(curves) > 1 else "")
-        label = f"{env.split('/')[-1]} {algo.upper()} {mode}, {kind} ({seeds})"
+        how = ", sampled" if "sampled" in model else ""
+        label = f"{env.split('/')[-1]} {algo.upper()} {mode}, {kind}{how} ({seeds})"
         line = ax.plot(steps, ys.mean(axis=0), "o-", label=label, markersize=3)[0]
         if len(curves) > 1:
             ax.fill_between(steps, ys.min(axis=0), ys.max(axis=0), color=line.get_color(),
@@ -196,7 +198,7 @@ def _plot(groups: dict[tuple, list[dict]], path: Path) -> Path:
     # Log steps: a clone's 2000 steps and a learner's 400k on one axis.
     ax.set_xscale("log")
     ax.set_xlabel("environment steps")
-    ax.set_ylabel("success on the training container\n(deterministic policy)")
+    ax.set_ylabel("success on the training container\n(as the row's model is scored)")
     ax.set_ylim(-0.02, 1.02)
     ax.set_title("Learning curves: mean over seeds, band: their range", fontsize=10)
     ax.legend(fontsize=7, loc="center left")

@@ -242,7 +242,7 @@ def plot_curve(out: Path, title: str) -> Path | None:
         steps = data[key]
         ax.plot(steps, data["success"], "o-", label="success rate")
         ax.set_xlabel(label)
-        ax.set_ylabel("success rate (deterministic policy)")
+        ax.set_ylabel("success rate (as the run scores its policy)")
         ax.set_ylim(-0.02, 1.02)
         ax2 = ax.twinx()
         ax2.plot(steps, data["return"], "s--", color="tab:orange", label="return")
@@ -303,7 +303,7 @@ def training_callbacks(
             self.bar.close()
 
     class Curve(BaseCallback):
-        """Success and return of the deterministic policy on the training containers."""
+        """Success and return of the policy (as the run scores it) on the training containers."""
 
         def __init__(self):
             super().__init__()

@@ -181,7 +181,8 @@ def train(config: TrainConfig) -> dict:
         for name in ("model.zip", NORMALISER):
             if (best / name).is_file():
                 shutil.copyfile(best / name, out / name)
-    plot_curve(out, f"{config.env}, {config.algo}, {config.obs_mode}, {config.objects}")
+    scored = "sampled actions" if config.stochastic_eval else "mean action"
+    plot_curve(out, f"{config.env}, {config.algo}, {config.obs_mode}, {config.objects} ({scored})")
     run = load_run(out / "model.zip")
     result = evaluate_policy(
         sb3_policy(run),
