@@ -109,9 +109,9 @@ class PourEnv(PourGymEnv):
     ``perception="scan"`` from what a robot would have: each container scanned on the
     simulated turntable (noise seed ``scan_seed``), reconstructed and labelled by warping
     (:mod:`pour_gym.perception`, cached per container and seed; 10-30 s the first time).
-    The fluid, the counts and the reward always use the true meshes. A container the
-    pipeline cannot take (a reconstruction closed at the top) is refused at ``reset``
-    with a ``PerceptionError`` naming it.
+    The fluid, the counts and the reward always use the true meshes. Every container is
+    perceived when the environment is made, and one the pipeline cannot take (a
+    reconstruction closed at the top) is refused there with a ``PerceptionError`` naming it.
 
     ## Rewards
     Per step, with T the target amount in particles, each term times its weight:
@@ -329,6 +329,11 @@ class PourEnv(PourGymEnv):
             raise ValueError(f"tilt_control must be one of {TILT_CONTROLS}, not {tilt_control!r}")
         self.sources = self._containers(source_objects if source_objects is not None else objects)
         self.targets = self._containers(target_objects if target_objects is not None else objects)
+        if perception == "scan":
+            # Every container perceived now (cached after the first time), so that one the
+            # pipeline cannot take is refused here, not at some reset in the middle of a run.
+            for name in dict.fromkeys(self.sources + self.targets):
+                self.seen(name)
         self.obs_mode = obs_mode
         self.source_particles = None if source_particles is None else int(source_particles)
         self.amount_range = (int(lo), int(hi))

@@ -108,3 +108,14 @@ def test_a_point_cloud_file_is_a_container(tmp_path, monkeypatch):
     np.save(tmp_path / "mm.npy", big)
     with pytest.raises(InputError, match="millimetres"):
         resolve_asset(tmp_path / "mm.npy")
+
+
+@pytest.mark.slow
+def test_an_env_refuses_a_container_it_cannot_perceive_when_it_is_made(tmp_path, monkeypatch):
+    """procedural:test#9 closes with both kernels: gym.make says so, naming it, instead of
+    a reset raising in the middle of a training run."""
+    import gymnasium as gym
+
+    monkeypatch.setenv("POUR_GYM_CACHE", str(tmp_path))
+    with pytest.raises(PerceptionError, match=r"procedural:test#9.*closed"):
+        gym.make("PourGym/Pour-v0", objects="red_cup,procedural:test#9", perception="scan")
