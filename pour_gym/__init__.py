@@ -31,10 +31,5 @@ meshes, small dataclasses); a package imports only from those below it
 
 __version__ = "0.1.0"
 
-# The tbb wheel's TBB first, before open3d can load its older copy (pour_gym.io.tbb).
-from pour_gym.io.tbb import use_wheel_tbb
-
-use_wheel_tbb()
-
 # Importing the package registers the PourGym/ environments with Gymnasium.
-import pour_gym.envs  # noqa: E402, F401
+import pour_gym.envs  # noqa: F401

@@ -19,6 +19,10 @@ def open3d() -> ModuleType:
     global _open3d  # a module cache, not state: importing twice would give the same module
     if _open3d is not None:
         return _open3d
+    # open3d brings a TBB too old for numba: the tbb wheel's must be the process's first.
+    from pour_gym.io.tbb import use_wheel_tbb
+
+    use_wheel_tbb()
     try:
         _open3d = importlib.import_module("open3d")
     except ImportError as exc:

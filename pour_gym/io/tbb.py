@@ -4,10 +4,11 @@ numba's TBB threading layer needs TBB 2021.6 or later (interface 12060). A proce
 ``libtbb.so.12``: the first copy loaded is the one every later user gets, by its soname.
 open3d's wheel bundles TBB 2021.5 (12050); if open3d is imported first, numba finds that
 copy, refuses it, and a parallel kernel told to use TBB raises "No threading layer could
-be loaded". So the wheel's TBB is loaded when ``pour_gym`` is imported (before open3d,
-which pour-gym imports lazily), and numba is told to use TBB only if the copy the
-process ended up with is new enough; otherwise numba chooses (OpenMP, or workqueue), and
-:mod:`pour_gym.fluid` warns before a fork that OpenMP would not survive.
+be loaded". So the wheel's TBB is loaded by whichever comes first, :mod:`pour_gym.fluid`
+or :func:`pour_gym.io.open3d_loader.open3d` (pour-gym's only way to import open3d), and
+numba is told to use TBB only if the copy the process ended up with is new enough;
+otherwise numba chooses (OpenMP, or workqueue), and :mod:`pour_gym.fluid` warns before a
+fork that OpenMP would not survive.
 """
 
 from __future__ import annotations
