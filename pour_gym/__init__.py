@@ -14,7 +14,8 @@ meshes, small dataclasses); a package imports only from those below it
 - :mod:`pour_gym.envs`: the Gymnasium environments (``PourGym/...``), their registry,
   tasks and the holders of the source container.
 - :mod:`pour_gym.sim`: the pybullet world (a client per world), spawning, census,
-  camera, scripted scenes, the Panda arm.
+  camera, scripted scenes, the Panda arm; :mod:`pour_gym.perception`: a container as a
+  robot's scan sees it (scanned, reconstructed, labelled), for the observations.
 - :mod:`pour_gym.fluid`: the position-based fluid in numba, signed-distance colliders,
   the rigid-sphere reference backend.
 - :mod:`pour_gym.assets`: the labelled asset format, labelling, the catalogue.
@@ -25,8 +26,8 @@ meshes, small dataclasses); a package imports only from those below it
 - :mod:`pour_gym.objects`: the thesis's nine containers as parametric meshes with labels,
   and meshes made the way users' are.
 - :mod:`pour_gym.report`: tables, pictures, videos.
-- :mod:`pour_gym.io`, :mod:`pour_gym.errors`, :mod:`pour_gym.parts`: the cache folder and
-  output redirection, the errors, the part labels.
+- :mod:`pour_gym.io`, :mod:`pour_gym.errors`, :mod:`pour_gym.parts`: the cache folder,
+  output redirection, open3d's and TBB's loading, the errors, the part labels.
 """
 
 __version__ = "0.1.0"
