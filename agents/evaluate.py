@@ -39,7 +39,9 @@ class LoadedPolicy:
     trained_on: list[str] = field(default_factory=list)
 
 
-def load_policy(name: str, env_id: str | None = None, algo: str | None = None) -> LoadedPolicy:
+def load_policy(
+    name: str, env_id: str | None = None, algo: str | None = None, actions: str | None = None
+) -> LoadedPolicy:
     """A policy by name: ``"scripted"``, a policy search's ``search.json``, or a model.
 
     Args:
@@ -47,6 +49,8 @@ def load_policy(name: str, env_id: str | None = None, algo: str | None = None) -
             (``pour-v0-red-cup-features``) or a ``model.zip``.
         env_id: the environment (default: the model's, or Pour-v0 for the scripted ones).
         algo: the algorithm of a model without a ``config.json``.
+        actions: a model's ``"mean"`` action or its ``"sampled"`` ones (seeded per
+            episode); None: as its run scored it (``stochastic_eval`` in its config).
 
     Raises:
         InputError: an unknown policy, a scripted policy for an env that does not pour, or
@@ -56,7 +60,11 @@ def load_policy(name: str, env_id: str | None = None, algo: str | None = None) -
     from pour_gym.envs import POUR_V0
     from pour_gym.errors import InputError
 
+    if actions not in (None, "mean", "sampled"):
+        raise InputError(f"actions are 'mean' or 'sampled', not {actions!r}")
     if name == "scripted" or name.endswith(".json"):
+        if actions is not None:
+            raise InputError("--actions is for a trained model; the scripted policy has no noise")
         from pour_gym.agents.scripted import ScriptedPourPolicy, tilt_settings
         from pour_gym.agents.search import load_search
 
@@ -83,7 +91,8 @@ def load_policy(name: str, env_id: str | None = None, algo: str | None = None) -
     env_id = env_id or run.config.get("env") or POUR_V0
     if run.config.get("env") and run.config["env"] != env_id:
         raise InputError(f"the model was trained on {run.config['env']}, not {env_id}")
-    return LoadedPolicy(sb3_policy(run), env_id, run.env_kwargs(), run.trained_on())
+    deterministic = None if actions is None else actions == "mean"
+    return LoadedPolicy(sb3_policy(run, deterministic), env_id, run.env_kwargs(), run.trained_on())
 
 
 def evaluate_policy(

@@ -293,6 +293,12 @@ def test_a_sampling_policy_is_the_same_for_the_same_seed_and_leaves_torch_alone(
     run = load_run("pour-v1-red-cup-features")
     sampled = sb3_policy(run)
     assert isinstance(sampled, SampledPolicy)  # as its config says (stochastic_eval)
+    from pour_gym.agents.evaluate import load_policy
+
+    mean = load_policy("pour-v1-red-cup-features", actions="mean").policy
+    assert not isinstance(mean, SampledPolicy)
+    with pytest.raises(InputError, match="scripted policy has no noise"):
+        load_policy("scripted", actions="sampled")
     env = gym.make("PourGym/Pour-v1", objects="red_cup", source_particles=300,
                    amount_range=(40, 80), max_episode_steps=20)  # fmt: skip
 

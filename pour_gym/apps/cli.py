@@ -216,6 +216,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--source-objects", help="Pour-v0: sources of a source x target matrix of rows")
     p.add_argument("--target-objects", help="Pour-v0: targets of the matrix (default: --objects)")
     p.add_argument("--algo", help="algorithm, if the model has no config.json beside it")
+    p.add_argument(
+        "--actions",
+        choices=("mean", "sampled"),
+        help="a model's mean action or its sampled ones (seeded per episode); default: as "
+        "its run scored it (stochastic_eval in its config.json)",
+    )
 
     p = add(
         "search", commands.cmd_search, "CMA-ES policy search over the scripted policy (Pour-v0)"

@@ -427,7 +427,7 @@ def cmd_evaluate(args: argparse.Namespace) -> Output:
     from pour_gym.agents.evaluate import evaluate_policy, evaluation_table, load_policy
     from pour_gym.assets import expand_containers
 
-    loaded = load_policy(args.policy, args.env, args.algo)
+    loaded = load_policy(args.policy, args.env, args.algo, args.actions)
     policy, env_kwargs, trained = loaded.policy, loaded.env_kwargs, loaded.trained_on
     args.env = loaded.env_id
     result = evaluate_policy(
