@@ -63,12 +63,19 @@ class ScanPerception:
         narrower: kernel widths (m) to try, in order, where the surface of the one before
             closes the opening: a kernel of 1 cm bridges the 4-5 cm mouth of a tall,
             narrow container that the scan sees only from outside.
+        higher: camera elevations (deg) of a second scan, taken where every kernel closes
+            the first scan's opening: a robot that cannot make out a mouth looks from
+            higher up. Views from 30 and 60 deg see a thin rim's top that views from 5
+            and 30 deg miss (a straight cup with 3 mm walls is closed from the first
+            scan and measured from the second), but not the underside of a bowl (11 %
+            short from them alone), so they are the second look, not the first.
         source: the labelled cup warped onto the reconstruction.
     """
 
     scan: ScanConfig = field(default_factory=ScanConfig)
     reconstruct: ReconstructConfig = field(default_factory=ReconstructConfig)
     narrower: tuple[float, ...] = (0.006,)
+    higher: tuple[float, ...] = (30.0, 60.0)
     source: str = "red_cup"
 
     def to_dict(self) -> dict:
@@ -94,23 +101,34 @@ def perceive(asset: LabelledAsset, seed: int = 0, how: ScanPerception | None = N
             cavity the warp can map onto).
     """
     how = how or ScanPerception()
-    scan = ScanConfig(**{**asdict(how.scan), "seed": int(seed)})
-    cloud = turntable_scan(asset.mesh, asset.labels, scan)
     name = f"{asset.name} (scan {seed})"
-    for sigma in (how.reconstruct.sigma, *how.narrower):
-        settings = replace(how.reconstruct, sigma=sigma)
-        mesh = reconstruct(cloud, settings).mesh
-        try:
-            labelled = label_container(mesh, source=how.source, name=name)
-            break
-        except ClosedContainerError as exc:
-            closed = exc.problem  # try a narrower kernel, if there is one left
-        except InputError as exc:
-            raise PerceptionError(asset.name, str(exc)) from None
+    widths = (how.reconstruct.sigma, *how.narrower)
+    looks = [how.scan.elevations_deg] + ([how.higher] if how.higher else [])
+    for elevations in looks:
+        scan = replace(how.scan, elevations_deg=tuple(elevations), seed=int(seed))
+        cloud = turntable_scan(asset.mesh, asset.labels, scan)
+        for sigma in widths:
+            settings = replace(how.reconstruct, sigma=sigma)
+            mesh = reconstruct(cloud, settings).mesh
+            try:
+                labelled = label_container(mesh, source=how.source, name=name)
+                break
+            except ClosedContainerError as exc:
+                closed = exc.problem  # a narrower kernel, or a higher look, if one is left
+            except InputError as exc:
+                raise PerceptionError(asset.name, str(exc)) from None
+        else:
+            continue
+        break
     else:
-        widths = ", ".join(f"{1000 * w:g}" for w in (how.reconstruct.sigma, *how.narrower))
+        kernels = ", ".join(f"{1000 * w:g}" for w in widths)
+        views = " and ".join(
+            "/".join(f"{e:g}" for e in elevations) + " deg" for elevations in looks
+        )
         raise PerceptionError(
-            asset.name, f"its reconstruction is closed with kernels of {widths} mm ({closed})"
+            asset.name,
+            f"its reconstruction is closed with kernels of {kernels} mm from views at {views} "
+            f"({closed})",
         )
     # The labels are the reconstruction's vertices', in order: its geometry in the frame
     # the scan was taken in, which is the true asset's.
@@ -126,7 +144,12 @@ def perceive(asset: LabelledAsset, seed: int = 0, how: ScanPerception | None = N
             **geometry.to_dict(),
             "perceived_from": asset.name,
             "true": asset.geometry.to_dict(),
-            "perception": {**how.to_dict(), "seed": int(seed), "sigma": settings.sigma},
+            "perception": {
+                **how.to_dict(),
+                "seed": int(seed),
+                "sigma": settings.sigma,
+                "elevations_deg": list(scan.elevations_deg),
+            },
             "points": len(cloud.points),
             "source": labelled.meta["source"],
         },
