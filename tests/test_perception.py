@@ -82,11 +82,14 @@ def test_a_narrow_mouth_takes_a_narrower_kernel_and_is_refused_without_one(cache
     closes its opening; without a narrower one to try the pipeline says so by name rather
     than label a lid, and with the default 6 mm one it measures the member."""
     member = resolve_asset("procedural:test#5")
-    thesis_only = ScanPerception(narrower=())
-    with pytest.raises(PerceptionError, match=r"procedural:test#5.*closed with kernels of 10 mm"):
+    thesis_only = ScanPerception(narrower=(), higher=())
+    with pytest.raises(
+        PerceptionError, match=r"procedural:test#5.*closed with kernels of 10 mm from views at 5/30"
+    ):
         perceived_asset(member, seed=0, how=thesis_only, cache_dir=cache)
     seen = perceived_asset(member, seed=0, cache_dir=cache)
     assert seen.meta["perception"]["sigma"] == 0.006
+    assert seen.meta["perception"]["elevations_deg"] == [5.0, 30.0]
     error = geometry_error(member, seen)
     assert abs(error["rim_radius"]) < 0.1 and abs(error["cavity_volume"]) < 0.1, error
 
@@ -112,10 +115,24 @@ def test_a_point_cloud_file_is_a_container(tmp_path, monkeypatch):
 
 @pytest.mark.slow
 def test_an_env_refuses_a_container_it_cannot_perceive_when_it_is_made(tmp_path, monkeypatch):
-    """procedural:test#9 closes with both kernels: gym.make says so, naming it, instead of
-    a reset raising in the middle of a training run."""
+    """procedural:test#36 closes with both kernels from both looks: gym.make says so,
+    naming it, instead of a reset raising in the middle of a training run."""
     import gymnasium as gym
 
     monkeypatch.setenv("POUR_GYM_CACHE", str(tmp_path))
-    with pytest.raises(PerceptionError, match=r"procedural:test#9.*closed"):
-        gym.make("PourGym/Pour-v0", objects="red_cup,procedural:test#9", perception="scan")
+    with pytest.raises(PerceptionError, match=r"procedural:test#36.*closed.*5/30 deg and 30/60"):
+        gym.make("PourGym/Pour-v0", objects="red_cup,procedural:test#36", perception="scan")
+
+
+@pytest.mark.slow
+def test_a_thin_walled_cup_is_measured_from_the_higher_look(cache):
+    """A straight cup with 3 mm walls: the 5/30 deg views miss its thin rim's top and every
+    kernel closes the mouth; the 30/60 deg views see it (rim within 1 %, cavity 10 %)."""
+    from pour_gym.assets import label_container
+    from pour_gym.objects.user_meshes import thin_walled_cup
+
+    cup = label_container(thin_walled_cup(), name="thin_cup")
+    seen = perceived_asset(cup, seed=0, cache_dir=cache)
+    assert seen.meta["perception"]["elevations_deg"] == [30.0, 60.0]
+    error = geometry_error(cup, seen)
+    assert abs(error["rim_radius"]) < 0.01 and abs(error["cavity_volume"]) < 0.1, error
