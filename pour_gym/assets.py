@@ -421,6 +421,23 @@ def expand_containers(spec: str | Path | list | tuple) -> tuple[str, ...]:
     return items
 
 
+def cache_entry(key: bytes, stem: str, cache_dir: str | Path | None = None) -> Path:
+    """The folder of the cached asset with this key (it may not exist yet).
+
+    Args:
+        key: what the asset is a function of (file bytes, names, versions, settings).
+        stem: the start of its folder's name, for people reading the cache.
+        cache_dir: where assets are kept (default: the user cache's ``assets``).
+    """
+    import hashlib
+
+    from pour_gym.io.cache import cache_dir as user_cache
+
+    root = Path(cache_dir) if cache_dir is not None else user_cache("assets")
+    stem = re.sub(r"[^A-Za-z0-9]+", "_", stem)
+    return root / f"{stem}_{hashlib.sha256(key).hexdigest()[:16]}"
+
+
 def cached_asset(
     key: bytes, stem: str, make: Callable[[], LabelledAsset], cache_dir: str | Path | None = None
 ) -> LabelledAsset:
@@ -436,19 +453,14 @@ def cached_asset(
         The asset as loaded from its folder (so a made asset and a cached one are the
         same numbers).
     """
-    import hashlib
     import os
     import shutil
 
-    from pour_gym.io.cache import cache_dir as user_cache
-
-    root = Path(cache_dir) if cache_dir is not None else user_cache("assets")
-    stem = re.sub(r"[^A-Za-z0-9]+", "_", stem)
-    target = root / f"{stem}_{hashlib.sha256(key).hexdigest()[:16]}"
+    target = cache_entry(key, stem, cache_dir)
     if not (target / "meta.json").is_file():
         # Written aside and renamed, so that environments in parallel processes never
         # read a half-written asset.
-        tmp = root / f".{target.name}.{os.getpid()}"
+        tmp = target.parent / f".{target.name}.{os.getpid()}"
         write_asset(make(), tmp, picture=False)
         try:
             tmp.rename(target)

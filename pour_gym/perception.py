@@ -16,6 +16,8 @@ by them (:func:`pour_gym.assets.cached_asset`): a container is scanned once per 
 
 from __future__ import annotations
 
+import json
+import os
 from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
@@ -23,6 +25,7 @@ import numpy as np
 from pour_gym.assets import (
     LABELLING_VERSION,
     LabelledAsset,
+    cache_entry,
     cached_asset,
     label_container,
 )
@@ -164,8 +167,11 @@ def perceived_asset(
 ) -> LabelledAsset:
     """:func:`perceive`, cached by the container's mesh and labels, the settings and seed.
 
+    A refusal is cached too (``<entry>.refused.json`` beside where the asset would be):
+    asked again, the same container is refused at once instead of scanned twice more.
+
     Raises:
-        PerceptionError: as :func:`perceive` (not cached: asked again, it tries again).
+        PerceptionError: as :func:`perceive`.
     """
     how = how or ScanPerception()
     key = b"".join(
@@ -178,9 +184,19 @@ def perceived_asset(
             f" v{LABELLING_VERSION}".encode(),
         ]
     )
-    return cached_asset(
-        key, f"{asset.name}_scan{seed}", lambda: perceive(asset, seed, how), cache_dir
-    )
+    stem = f"{asset.name}_scan{seed}"
+    refused = cache_entry(key, stem, cache_dir).with_suffix(".refused.json")
+    if refused.is_file():
+        said = json.loads(refused.read_text())
+        raise PerceptionError(said["name"], said["why"])
+    try:
+        return cached_asset(key, stem, lambda: perceive(asset, seed, how), cache_dir)
+    except PerceptionError as exc:
+        # Written aside and renamed, as assets are: a reader never sees half a file.
+        tmp = refused.with_name(f".{refused.name}.{os.getpid()}")
+        tmp.write_text(json.dumps({"name": exc.name, "why": exc.why}) + "\n")
+        tmp.replace(refused)
+        raise
 
 
 def geometry_error(true: LabelledAsset, seen: LabelledAsset) -> dict[str, float]:
