@@ -124,12 +124,14 @@ def family_study(
         raise InputError(f"every member of {family} was refused: {refused[0]['reason']}")
     doc: dict = {"family": family, "episodes": episodes, "seed": seed, "scan_seed": scan_seed,
                  "refused": refused, "refused_perception": []}  # fmt: skip
+    # Each loaded once, and before the scans: a bad name fails now, not after them.
+    loaded_policies = {name: load_policy(name) for name in policies}
     members = {"true": usable}
     if "scan" in perceptions:
         members["scan"], doc["refused_perception"] = perceivable_members(usable, scan_seed)
     doc["policies"] = {}
     for name, perception in [(n, p) for n in policies for p in perceptions]:
-        loaded = load_policy(name)
+        loaded = loaded_policies[name]
         kwargs = {**loaded.env_kwargs, "perception": perception, "scan_seed": scan_seed}
         result = evaluate_policy(
             loaded.policy, loaded.env_id, members[perception], episodes, seed=seed,
