@@ -42,7 +42,13 @@ METRICS = {
 
 
 def training_kind(config: dict) -> str:
-    """How a run learnt: ``"reward"``, ``"clone"`` (cloning only) or ``"clone + RL"``."""
+    """How a run learnt.
+
+    ``"reward"``, ``"clone"`` (cloning only), ``"clone + RL"``, or ``"reward, residual on
+    the expert"`` (a correction to the scripted expert's actions, learnt from the reward).
+    """
+    if config.get("residual"):
+        return "reward, residual on the expert"
     if not config.get("demonstrations"):
         return "reward"
     steps = config.get("hyperparameters", {}).get("gradient_steps", 1)
@@ -79,6 +85,22 @@ def _wall_seconds(run_dir: Path, result: dict) -> float | None:
     return total
 
 
+def _metrics(rows: list[dict]) -> dict[str, float | None]:
+    """The report's metrics of one evaluation's rows (None where a group is empty)."""
+    trained = [r for r in rows if r["trained_on"]]
+    unseen = [r for r in rows if not r["trained_on"]]
+
+    def mean(group: list[dict], key: str) -> float | None:
+        return float(np.mean([r[key] for r in group])) if group else None
+
+    return {
+        "trained_success": mean(trained, "success"),
+        "unseen_success": mean(unseen, "success"),
+        "unseen_amount_error": mean(unseen, "amount_error"),
+        "unseen_spilled": mean(unseen, "spilled"),
+    }
+
+
 def run_summary(run_dir: Path) -> dict:
     """The summary of one ``train.py`` run directory (config.json and eval.json in it).
 
@@ -95,13 +117,7 @@ def run_summary(run_dir: Path) -> dict:
     config = json.loads(paths["config"].read_text())
     result = json.loads(paths["eval"].read_text())
     rows = result["rows"]
-    trained = [r for r in rows if r["trained_on"]]
-    unseen = [r for r in rows if not r["trained_on"]]
     curve = read_curve(run_dir / "curve.csv")
-
-    def mean(group: list[dict], key: str) -> float | None:
-        return float(np.mean([r[key] for r in group])) if group else None
-
     return {
         "run": run_dir.name,
         "env": config["env"],
@@ -114,15 +130,49 @@ def run_summary(run_dir: Path) -> dict:
         "wall_seconds": _wall_seconds(run_dir, result),
         "objects": config["objects"],
         "env_kwargs": config.get("env_kwargs", {}),
-        "metrics": {
-            "trained_success": mean(trained, "success"),
-            "unseen_success": mean(unseen, "success"),
-            "unseen_amount_error": mean(unseen, "amount_error"),
-            "unseen_spilled": mean(unseen, "spilled"),
-        },
+        "metrics": _metrics(rows),
         "eval_episodes": result["episodes"],
         "eval_rows": rows,
         "curve": {k: v.tolist() for k, v in curve.items()} if curve is not None else None,
+    }
+
+
+def reference_summary(eval_path: Path, trained_on: tuple[str, ...] = ("red_cup",)) -> dict:
+    """A reference row from ``pour-gym evaluate scripted --json``.
+
+    The expert the runs are measured against, on the same containers and seeds as their
+    evaluations. Its rows for ``trained_on`` (the runs' training container) count as
+    "trained on", the others as unseen: its unseen means are over the runs' unseen ones.
+
+    Raises:
+        InputError: a file that is not an evaluation's JSON.
+    """
+    eval_path = Path(eval_path)
+    try:
+        result = json.loads(eval_path.read_text())
+        rows = [{**r, "trained_on": r["object"] in trained_on} for r in result["rows"]]
+    except (OSError, ValueError, KeyError, TypeError):
+        raise InputError(
+            f"{eval_path} is not an evaluation: write one with "
+            "`pour-gym evaluate scripted --objects all,real --episodes 10 --seed 10000 --json`"
+        ) from None
+    env = result["env"]
+    return {
+        "run": f"scripted-expert-{env.split('/')[-1].lower()}",
+        "env": env,
+        "algo": "scripted",
+        "obs_mode": "features",
+        "kind": "hand-written (reference)",
+        "model": "deterministic",
+        "seed": 0,
+        "timesteps": 0,
+        "wall_seconds": None,
+        "objects": "",
+        "env_kwargs": {},
+        "metrics": _metrics(rows),
+        "eval_episodes": result["episodes"],
+        "eval_rows": rows,
+        "curve": None,
     }
 
 
@@ -211,6 +261,7 @@ def _plot(groups: dict[tuple, list[dict]], path: Path) -> Path:
 
 def baselines_report(
     runs: list[str | Path] = (),
+    reference: str | Path | None = None,
     summaries: Path = SUMMARIES,
     report: Path = REPORT,
     curves: Path = CURVES,
@@ -220,6 +271,8 @@ def baselines_report(
     Args:
         runs: ``train.py`` run directories (or folders of them) to add; may be empty to
             regenerate from the committed summaries.
+        reference: the scripted expert's evaluation (``pour-gym evaluate scripted
+            --json``) to add as a reference row (:func:`reference_summary`).
         summaries: the folder of run summaries.
         report: the markdown report to write.
         curves: the learning curves' PNG.
@@ -243,6 +296,9 @@ def baselines_report(
         for d in dirs:
             s = run_summary(d)
             (summaries / f"{s['run']}.json").write_text(json.dumps(s, indent=1) + "\n")
+    if reference is not None:
+        s = reference_summary(Path(reference))
+        (summaries / f"{s['run']}.json").write_text(json.dumps(s, indent=1) + "\n")
     found = [json.loads(p.read_text()) for p in sorted(summaries.glob("*.json"))]
     if not found:
         raise InputError(f"no run summaries in {summaries}: pass --runs DIR")
@@ -276,7 +332,7 @@ def baselines_report(
                 model,
                 str(len(group)),
                 *cells,
-                "/".join(f"{t:,}" for t in steps),
+                "/".join(f"{t:,}" for t in steps) if any(steps) else "-",
                 _minutes(wall, len(group)),
             ]
         )
@@ -291,7 +347,9 @@ def baselines_report(
         "brackets (`scipy.stats.bootstrap`; one seed: no interval). *Trained on*: the "
         "training container's evaluation episodes; *unseen*: the mean over the containers "
         "the run never trained on, each as source and target, at seeds training never used. "
-        "Amount error is |poured - target| in particles (0.125 ml each).",
+        "Amount error is |poured - target| in particles (0.125 ml each). A *hand-written "
+        "(reference)* row is the scripted expert on the same containers and seeds (it is "
+        "not trained: *trained on* is the red cup).",
         "",
         markdown_table(header, table, align="lllllr" + "r" * (len(METRICS) + 2)),
         "",

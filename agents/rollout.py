@@ -150,20 +150,27 @@ def sb3_policy(model, deterministic: bool | None = None) -> Callable[[np.ndarray
         deterministic: act with the distribution's mean (True) or sample the actions
             (False: the policy that PPO optimises; see :class:`SampledPolicy`). None: as
             the run's config says (``stochastic_eval``), else the mean.
+
+    A run that learnt a correction to the scripted expert (its config's ``residual``)
+    acts as :class:`~pour_gym.agents.residual.ResidualPolicy`: the expert plus the model.
     """
     normalise = getattr(model, "normalise", None)
     predictor = getattr(model, "model", model)
+    config = getattr(model, "config", {})
     if deterministic is None:
-        deterministic = not getattr(model, "config", {}).get("stochastic_eval", False)
+        deterministic = not config.get("stochastic_eval", False)
+    from pour_gym.agents.residual import residual_policy
+
     if not deterministic:
-        return SampledPolicy(predictor, normalise)
+        return residual_policy(SampledPolicy(predictor, normalise), config)
 
     def act(obs: np.ndarray) -> np.ndarray:
         x = normalise(obs) if normalise is not None else obs
         action, _ = predictor.predict(x, deterministic=True)
         return action
 
-    return act
+    # A run that learnt a correction to the scripted expert acts with the expert.
+    return residual_policy(act, config)
 
 
 class SampledPolicy:

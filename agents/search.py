@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 import sys
+import time
 from dataclasses import asdict
 from pathlib import Path
 
@@ -39,6 +40,7 @@ PARAMETERS = (
     ("back_rate", 0.05, 1.0),
 )
 OBJECTIVES = ("return", "error")
+STARTS = ("search", "expert")
 # Where the search starts: fixed here, not read from the policy's defaults (which are tuned
 # for Pour-v0's usual 100-300 particles and may change), so a committed search repeats.
 START = {
@@ -51,6 +53,20 @@ START = {
     "gain": 2.0,
     "back_rate": 1.0,
 }
+
+
+def start_parameters(start: str) -> dict[str, float]:
+    """Where a search starts.
+
+    ``"search"``: :data:`START`; ``"expert"``: the scripted expert's own defaults (a search
+    that improves on the expert it starts from).
+    """
+    if start not in STARTS:
+        raise InputError(f"start must be one of {STARTS}, not {start!r}")
+    if start == "search":
+        return dict(START)
+    expert = ScriptedPourPolicy()
+    return {name: float(getattr(expert, name)) for name, _, _ in PARAMETERS}
 
 
 def to_policy(u: np.ndarray, amount: int | None = None) -> ScriptedPourPolicy:
@@ -107,8 +123,8 @@ def score_candidate(task: dict) -> float:
     A function of plain data, so that it runs the same here or as a Ray task.
 
     Args:
-        task: ``u`` (the candidate in the unit cube; None: the starting parameters),
-            ``env_kwargs``, ``seeds``,
+        task: ``u`` (the candidate in the unit cube; None: the ``start`` parameters),
+            ``start``, ``env_kwargs``, ``seeds``,
             ``options`` (the resets'), ``objective`` and ``target_amount``.
     """
     import gymnasium as gym
@@ -119,7 +135,7 @@ def score_candidate(task: dict) -> float:
     amount = task["target_amount"]
     u = task["u"]
     policy = (
-        ScriptedPourPolicy(**START, amount=amount)
+        ScriptedPourPolicy(**task["start"], amount=amount)
         if u is None
         else to_policy(np.asarray(u), amount)
     )
@@ -143,6 +159,8 @@ def search(
     target_amount: int | None = None,
     target_objects=None,
     address: str | None = None,
+    start: str = "search",
+    sigma: float = 0.2,
 ) -> dict:
     """CMA-ES over the scripted policy's parameters on Pour-v0.
 
@@ -161,15 +179,21 @@ def search(
         address: evaluate each generation's candidates as Ray tasks there (``local``,
             ``auto`` or ``HOST:PORT``, see :mod:`pour_gym.agents.cluster`); None: one after
             another here. The result is the same either way.
+        start: where the search starts (:func:`start_parameters`).
+        sigma: CMA-ES's initial step, in the unit cube of the parameters' ranges.
 
     Returns:
         ``{"best": {param: value}, "best_score": x, "start_score": x, "objective",
-        "history": [...]}``.
+        "start", "start_from", "seed", "seeds", "episodes" (in all), "wall_seconds",
+        "history": [...]}`` and the containers and arguments searched on.
     """
     import cma
 
     if objective not in OBJECTIVES:
         raise InputError(f"objective must be one of {OBJECTIVES}, not {objective!r}")
+    first = start_parameters(start)
+    if not 0.0 < sigma <= 1.0:
+        raise InputError(f"sigma is a step in the unit cube: (0, 1], not {sigma}")
     if generations < 1 or population < 2 or episodes < 1:
         raise InputError(
             "search needs at least 1 generation, 2 candidates and 1 episode per candidate "
@@ -187,17 +211,19 @@ def search(
         "options": {"target_amount": int(target_amount)} if target_amount is not None else None,
         "objective": objective,
         "target_amount": target_amount,
+        "start": first,
     }
-    x0 = [(START[n] - lo) / (hi - lo) for n, lo, hi in PARAMETERS]
+    x0 = [(first[n] - lo) / (hi - lo) for n, lo, hi in PARAMETERS]
     es = cma.CMAEvolutionStrategy(
-        x0, 0.2, {"bounds": [0.0, 1.0], "popsize": population, "seed": seed + 1, "verbose": -9}
+        x0, sigma, {"bounds": [0.0, 1.0], "popsize": population, "seed": seed + 1, "verbose": -9}
     )
     history = []
+    started = time.perf_counter()
     bar = tqdm(total=generations * population + 1, desc="policy search", file=sys.stderr)
     with ray_session(address) as ray:
-        start = map_tasks(score_candidate, [{**job, "u": None}], ray)[0]
+        start_score = map_tasks(score_candidate, [{**job, "u": None}], ray)[0]
         bar.update()
-        best_score, best_u = start, np.array(x0)
+        best_score, best_u = start_score, np.array(x0)
         for g in range(generations):
             candidates = es.ask()
             tasks = [{**job, "u": list(map(float, u))} for u in candidates]
@@ -217,9 +243,15 @@ def search(
         "objective": objective,
         "target_amount": target_amount,
         "episodes_per_candidate": episodes,
+        "seed": seed,
         "seeds": seeds,
-        "start": dict(START),
-        "start_score": start,
+        "episodes": (generations * population + 1) * episodes,
+        "wall_seconds": time.perf_counter() - started,
+        "start": first,
+        "start_from": start,
+        "sigma": sigma,
+        "env_kwargs": kwargs,
+        "start_score": start_score,
         "best": {n: float(best[n]) for n, _, _ in PARAMETERS},
         "best_score": float(best_score),
         "history": history,

@@ -78,7 +78,9 @@ def trials(fixed: dict, grid: dict[str, list], out: str | Path) -> list[TrainCon
 
 def _cpus(config: TrainConfig) -> int:
     """CPUs a trial reserves: the environments it runs (the recipe's ``n_envs``)."""
-    recipe = load_recipe(config.env, config.algo, algorithm(config.algo), config.overrides)
+    recipe = load_recipe(
+        config.env, config.algo, algorithm(config.algo), config.overrides, config.recipe
+    )
     return max(recipe.n_envs, 1)
 
 

@@ -236,6 +236,19 @@ def test_evaluate_and_search_at_tiny_size():
     assert doc["best_score"] >= doc["start_score"]
     with pytest.raises(InputError, match="objective"):
         search("train", objective="speed")
+    # From the expert: its first score is the expert's own on the same seeds.
+    from pour_gym.agents.search import episode_returns, score
+    from pour_gym.envs import make
+
+    doc = search("red_cup", generations=1, population=2, episodes=1, env_kwargs=small,
+                 start="expert", sigma=0.05)  # fmt: skip
+    assert doc["start"] == {n: float(getattr(policy, n)) for n, _, _ in PARAMETERS}
+    env = make("PourGym/Pour-v0", objects=["red_cup"], **small)
+    expert = score(episode_returns(ScriptedPourPolicy(), env, doc["seeds"]), "return")
+    env.close()
+    assert doc["start_score"] == expert and doc["episodes"] == 3
+    with pytest.raises(InputError, match="start must be one of"):
+        search("red_cup", start="clone")
 
 
 @pytest.mark.slow

@@ -64,6 +64,29 @@ def test_report_groups_seeds_and_gives_intervals_over_them(tmp_path):
         baselines_report([tmp_path / "sum"], **paths)
 
 
+def test_the_expert_is_a_reference_row_over_the_runs_unseen_containers(tmp_path):
+    """``--reference``: the scripted expert's evaluation beside the runs; its red-cup row
+    is "trained on", so its unseen means are over the runs' unseen containers."""
+    _run(tmp_path / "runs" / "ppo_s0", 0, 1.0, algo="ppo")
+    rows = [{"object": name, "trained_on": False, "success": 1.0, "amount_error": error,
+             "spilled": 0.0} for name, error in (("red_cup", 9.0), ("broad_cup", 2.0),
+                                                 ("high_cup", 4.0))]  # fmt: skip
+    expert = tmp_path / "expert.json"
+    expert.write_text(json.dumps({"env": "PourGym/Pour-v1", "episodes": 10, "rows": rows}))
+    paths = {"summaries": tmp_path / "sum", "report": tmp_path / "b.md",
+             "curves": tmp_path / "b" / "curves.png"}  # fmt: skip
+    doc = baselines_report([tmp_path / "runs"], reference=expert, **paths)
+    (ref,) = [r for r in doc["rows"] if r["algo"] == "scripted"]
+    assert ref["unseen_amount_error"]["mean"] == pytest.approx(3.0)  # (2 + 4) / 2
+    assert ref["trained_success"]["mean"] == 1.0
+    text = paths["report"].read_text()
+    assert "| SCRIPTED | features | hand-written (reference) | deterministic | 1 |" in text
+    bad = tmp_path / "bad.json"
+    bad.write_text("{}")
+    with pytest.raises(InputError, match="pour-gym evaluate scripted"):
+        baselines_report([], reference=bad, **paths)
+
+
 def test_intervals_and_kinds():
     assert interval([0.5]) is None and interval([0.3, 0.3]) == (0.3, 0.3)
     low, high = interval([0.0, 1.0, 1.0, 1.0])
@@ -73,6 +96,8 @@ def test_intervals_and_kinds():
     assert training_kind(clone) == "clone"
     clone["hyperparameters"]["gradient_steps"] = 1
     assert training_kind(clone) == "clone + RL"
+    residual = {"demonstrations": None, "residual": {"scale": [0.1], "expert": {}}}
+    assert training_kind(residual) == "reward, residual on the expert"
 
 
 def test_the_committed_report_is_what_the_committed_summaries_give(tmp_path):

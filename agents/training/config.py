@@ -56,6 +56,12 @@ class TrainConfig:
 
     env: str = field(default=POUR_V0, metadata=_doc("environment id"))
     algo: str = field(default="sac", metadata=_doc(f"one of {', '.join(ALGORITHMS)}"))
+    recipe: str = field(
+        default="",
+        metadata=_doc(
+            "a named variant of the algorithm's recipe (hyperparams.yaml's <algo>/<recipe>)"
+        ),
+    )
     objects: str = field(
         default="train", metadata=_doc("containers to train on: split, name, mesh, or a,b,c")
     )
@@ -108,7 +114,8 @@ class TrainConfig:
         if self.out:
             return Path(self.out)
         objects = self.objects.replace(",", "+").replace("/", "_")
-        name = f"{self.env.split('/')[-1]}_{self.algo}_{objects}_{self.obs_mode}_s{self.seed}"
+        algo = f"{self.algo}-{self.recipe}" if self.recipe else self.algo
+        name = f"{self.env.split('/')[-1]}_{algo}_{objects}_{self.obs_mode}_s{self.seed}"
         return Path("runs") / name
 
 

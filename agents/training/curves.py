@@ -63,7 +63,11 @@ def record_curve_point(
     from stable_baselines3.common.vec_env import VecNormalize
 
     normaliser = venv if isinstance(venv, VecNormalize) else None
-    run = Run(model=model, config={}, normaliser=normaliser)
+    # The run's config.json (written when the run starts) says how its model acts (a
+    # residual on the expert, say).
+    saved = out / "config.json"
+    run_config = json.loads(saved.read_text()) if saved.is_file() else {}
+    run = Run(model=model, config=run_config, normaliser=normaliser)
     policy = sb3_policy(run, deterministic=not config.stochastic_eval)
     task = task_of(config.env)
     env = make(config.env, **env_kwargs)

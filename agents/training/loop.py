@@ -92,7 +92,7 @@ def train(config: TrainConfig) -> dict:
         raise InputError(
             f"unknown environment {config.env!r}; use one of {', '.join(ENV_IDS)}"
         ) from None
-    recipe = load_recipe(config.env, config.algo, cls, config.overrides)
+    recipe = load_recipe(config.env, config.algo, cls, config.overrides, config.recipe)
     if recipe.stochastic_eval:  # the recipe's way to score its policy; recorded as the run's
         config = dataclasses.replace(config, stochastic_eval=True)
     params = dict(recipe.hyperparameters)
@@ -105,6 +105,7 @@ def train(config: TrainConfig) -> dict:
         params["replay_buffer_class"] = DemoReplayBuffer
         params["replay_buffer_kwargs"] = {"demo_share": demos_cfg.share}
     train_objects = list(expand_containers(config.objects))
+    eval_objects = list(expand_containers(config.eval_objects))  # a bad name fails before work
     arguments = env_arguments(config, recipe)
     out = config.run_dir()
     ckpt_dir = out / "checkpoints"
@@ -118,6 +119,8 @@ def train(config: TrainConfig) -> dict:
         "policy": recipe.policy,
         "normalize": recipe.normalize,
         "env_wrapper": recipe.env_wrapper,
+        # A learner of corrections to the expert: whatever loads the run acts with both.
+        "residual": recipe.residual.to_dict() if recipe.residual else None,
         # What the environments were made with (recipe and run): evaluate uses it.
         "env_kwargs": arguments,
     }
@@ -187,7 +190,7 @@ def train(config: TrainConfig) -> dict:
     result = evaluate_policy(
         sb3_policy(run),
         config.env,
-        expand_containers(config.eval_objects),
+        eval_objects,
         config.eval_episodes,
         seed=config.eval_seed,
         env_kwargs=arguments,

@@ -20,6 +20,7 @@ from importlib.resources import files
 import gymnasium as gym
 import yaml
 
+from pour_gym.agents.residual import ResidualConfig
 from pour_gym.errors import InputError
 
 # The keys the training reads (the rest are the algorithm's constructor arguments).
@@ -32,7 +33,9 @@ RECIPE_KEYS = {
     "torch_threads": "torch's threads (1: the fluid keeps the other cores)",
     "demonstrations": "the scripted expert's episodes to start from (see DemoConfig)",
     "stochastic_eval": "evaluate and draw the curve with the policy's sampled actions (seeded)",
+    "residual": "learn a correction to the scripted expert's actions (see ResidualConfig)",
 }
+RESIDUAL_WRAPPER = "pour_gym.agents.residual.ExpertResidual"
 
 
 @dataclass
@@ -86,7 +89,7 @@ class Recipe:
     Attributes:
         hyperparameters: the algorithm's constructor arguments.
         n_envs, policy, normalize, env_kwargs, env_wrapper, torch_threads, demonstrations,
-            stochastic_eval: the training's own keys (:data:`RECIPE_KEYS`).
+            stochastic_eval, residual: the training's own keys (:data:`RECIPE_KEYS`).
     """
 
     hyperparameters: dict
@@ -98,28 +101,52 @@ class Recipe:
     torch_threads: int = 1
     demonstrations: DemoConfig | None = None
     stochastic_eval: bool = False
+    residual: ResidualConfig | None = None
 
     def wrapper(self) -> Callable[[gym.Env], gym.Env] | None:
         """A function that wraps an env in :attr:`env_wrapper`'s wrappers (None if none).
 
+        With a :attr:`residual`, :class:`~pour_gym.agents.residual.ExpertResidual` wraps
+        them all (the learner acts on the expert's episodes as the curricula start them).
         It pickles by reference, so vector envs' worker processes rebuild it.
         """
         specs = wrapper_specs(self.env_wrapper)
+        if self.residual is not None:
+            specs.append((RESIDUAL_WRAPPER, self.residual.to_dict()))
         return functools.partial(wrap_env, specs=specs) if specs else None
 
 
-def load_hyperparameters(env_id: str, algo: str) -> dict:
-    """The packaged recipe entry (``agents/hyperparams.yaml``) for an env and algorithm."""
+def recipe_key(algo: str, variant: str = "") -> str:
+    """The YAML key of an algorithm's recipe, or of a named variant of it (``ppo/residual``)."""
+    return f"{algo}/{variant}" if variant else algo
+
+
+def load_hyperparameters(env_id: str, algo: str, variant: str = "") -> dict:
+    """The packaged recipe entry (``agents/hyperparams.yaml``) for an env and algorithm.
+
+    Args:
+        env_id: the environment id.
+        algo: the algorithm's name.
+        variant: a named variant of the algorithm's recipe (the entry ``<algo>/<variant>``),
+            or "" for its own.
+    """
     table = yaml.safe_load(files("pour_gym.agents").joinpath("hyperparams.yaml").read_text())
     name = env_id.split(":")[-1]
     if name not in table:
         raise InputError(f"no hyperparameters for {env_id!r}; known: {', '.join(table)}")
-    if algo not in table[name]:
-        raise InputError(f"no {algo!r} hyperparameters for {env_id}; known: {list(table[name])}")
-    return dict(table[name][algo])
+    key = recipe_key(algo, variant)
+    if key not in table[name]:
+        raise InputError(f"no {key!r} hyperparameters for {env_id}; known: {list(table[name])}")
+    return dict(table[name][key])
 
 
-def load_recipe(env_id: str, algo: str, algorithm_class, overrides: dict | None = None) -> Recipe:
+def load_recipe(
+    env_id: str,
+    algo: str,
+    algorithm_class,
+    overrides: dict | None = None,
+    variant: str = "",
+) -> Recipe:
     """The recipe for an env and algorithm, with a run's overrides, checked.
 
     Args:
@@ -128,12 +155,13 @@ def load_recipe(env_id: str, algo: str, algorithm_class, overrides: dict | None 
         algorithm_class: the SB3 algorithm class (its constructor's arguments are the
             hyperparameters it takes).
         overrides: recipe keys that replace the YAML's.
+        variant: a named variant of the algorithm's recipe (``--recipe``), or "".
 
     Raises:
         InputError: a key neither the training's nor the algorithm's; bad wrappers or
             demonstrations.
     """
-    params = {**load_hyperparameters(env_id, algo), **(overrides or {})}
+    params = {**load_hyperparameters(env_id, algo, variant), **(overrides or {})}
     own = {k: params.pop(k) for k in list(params) if k in RECIPE_KEYS}
     takes = set(inspect.signature(algorithm_class).parameters) - {"self", "policy", "env"}
     unknown = sorted(set(params) - takes)
@@ -154,7 +182,11 @@ def load_recipe(env_id: str, algo: str, algorithm_class, overrides: dict | None 
         torch_threads=int(own.get("torch_threads", 1)),
         demonstrations=DemoConfig.from_recipe(demos) if demos else None,
         stochastic_eval=bool(own.get("stochastic_eval", False)),
+        residual=ResidualConfig.from_recipe(own["residual"]) if own.get("residual") else None,
     )
+    if recipe.residual is not None and recipe.demonstrations is not None:
+        raise InputError("a recipe learns a residual on the expert or starts from its "
+                         "demonstrations, not both")  # fmt: skip
     wrapper_specs(recipe.env_wrapper)  # refuse a bad wrapper before any work
     return recipe
 

@@ -19,6 +19,17 @@ from pour_gym.errors import InputError, SimulationError
 from pour_gym.io.stdio import redirect_stdout_fd
 
 
+def _json_object(text: str) -> dict:
+    """An argument that is a JSON object (argparse names the option when this raises)."""
+    try:
+        value = json.loads(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(f"not JSON ({exc}): {text!r}") from None
+    if not isinstance(value, dict):
+        raise argparse.ArgumentTypeError(f"a JSON object {{...}} is needed, not {text!r}")
+    return value
+
+
 def add_address(p: argparse.ArgumentParser, what: str) -> None:
     """The ``--address`` option of the commands that can run on Ray."""
     p.add_argument(
@@ -103,6 +114,11 @@ def build_parser() -> argparse.ArgumentParser:
         "--runs", nargs="+", default=[],
         help="generalisation, baselines: train.py run directories or folders of them",
     )  # fmt: skip
+    p.add_argument(
+        "--reference",
+        help="baselines: the scripted expert's evaluation (pour-gym evaluate scripted --json), "
+        "added as a reference row",
+    )
     p.add_argument("--out", help="generalisation: folder for report.md and plots")
     p.add_argument(
         "--family",
@@ -240,6 +256,19 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--target-amount", type=int, help="pour this many particles every episode")
     p.add_argument("--target-objects", help="containers to pour into (default: --objects)")
+    p.add_argument(
+        "--start",
+        choices=("search", "expert"),
+        default="search",
+        help="start from the search's own point, or from the scripted expert's defaults",
+    )
+    p.add_argument("--sigma", type=float, default=0.2, help="CMA-ES's first step in the unit cube")
+    p.add_argument(
+        "--env-kwargs",
+        type=_json_object,
+        default={},
+        help="JSON of Pour-v0 arguments, e.g. reward weights: '{\"progress_weight\": 20}'",
+    )
     add_address(p, "evaluate each generation's candidates as Ray tasks")
 
     p = add("sweep", commands.cmd_sweep, "a grid of train.py runs (Ray Tune trials with --address)")

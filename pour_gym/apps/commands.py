@@ -208,6 +208,8 @@ def cmd_report(args: argparse.Namespace) -> Output:
 
     if args.family and args.what not in ("warping", "generalisation"):
         raise InputError("--family is for report warping and report generalisation")
+    if args.reference and args.what != "baselines":
+        raise InputError("--reference is for report baselines")
     if args.what == "generalisation" and args.family:
         from pour_gym.agents.family_study import family_study, write_family_study
 
@@ -222,7 +224,7 @@ def cmd_report(args: argparse.Namespace) -> Output:
     if args.what == "baselines":
         from pour_gym.agents.baselines import REPORT, baselines_report
 
-        doc = baselines_report(args.runs)
+        doc = baselines_report(args.runs, reference=args.reference)
         return (doc, lambda: REPORT.read_text())
     if args.what == "generalisation":
         from pour_gym.agents.study import study_report
@@ -459,6 +461,9 @@ def cmd_search(args: argparse.Namespace) -> Output:
         target_amount=args.target_amount,
         target_objects=args.target_objects,
         address=args.address,
+        start=args.start,
+        sigma=args.sigma,
+        env_kwargs=args.env_kwargs,
     )
     what = "mean return" if doc["objective"] == "return" else "minus the mean error"
     text = (
