@@ -23,7 +23,7 @@ from dataclasses import asdict, dataclass, field
 import gymnasium as gym
 import numpy as np
 
-from pour_gym.agents.scripted import ScriptedPourPolicy
+from pour_gym.agents.scripted import ScriptedPourPolicy, tilt_settings
 from pour_gym.errors import InputError
 
 PHASES = ("move", "tilt", "back")  # the expert's phases, appended one-hot
@@ -162,8 +162,9 @@ class ResidualPolicy:
         tilt: the env's tilt settings (:func:`~pour_gym.agents.scripted.tilt_settings`).
     """
 
-    def __init__(self, learner: Callable[[np.ndarray], np.ndarray], config: ResidualConfig,
-                 tilt: dict):  # fmt: skip
+    def __init__(
+        self, learner: Callable[[np.ndarray], np.ndarray], config: ResidualConfig, tilt: dict
+    ):
         self.learner = learner
         self.core = ResidualCore(config, tilt)
 
@@ -191,8 +192,6 @@ def residual_policy(learner: Callable, run_config: dict) -> Callable[[np.ndarray
     value = run_config.get("residual")
     if not value:
         return learner
-    from pour_gym.agents.scripted import tilt_settings
-
     env_kwargs = run_config.get("env_kwargs") or {}
     if env_kwargs.get("obs_mode", run_config.get("obs_mode", "features")) != "features":
         raise InputError("a residual on the scripted expert needs obs_mode='features'")

@@ -16,12 +16,15 @@ import inspect
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from importlib.resources import files
+from typing import TYPE_CHECKING
 
 import gymnasium as gym
 import yaml
 
-from pour_gym.agents.residual import ResidualConfig
 from pour_gym.errors import InputError
+
+if TYPE_CHECKING:  # the residual module loads the envs (pybullet): only when a recipe has one
+    from pour_gym.agents.residual import ResidualConfig
 
 # The keys the training reads (the rest are the algorithm's constructor arguments).
 RECIPE_KEYS = {
@@ -172,6 +175,11 @@ def load_recipe(
             f"{', '.join(sorted(takes))}"
         )
     demos = own.get("demonstrations")
+    residual = None
+    if own.get("residual"):
+        from pour_gym.agents.residual import ResidualConfig
+
+        residual = ResidualConfig.from_recipe(own["residual"])
     recipe = Recipe(
         hyperparameters=params,
         n_envs=int(own.get("n_envs", 1)),
@@ -182,7 +190,7 @@ def load_recipe(
         torch_threads=int(own.get("torch_threads", 1)),
         demonstrations=DemoConfig.from_recipe(demos) if demos else None,
         stochastic_eval=bool(own.get("stochastic_eval", False)),
-        residual=ResidualConfig.from_recipe(own["residual"]) if own.get("residual") else None,
+        residual=residual,
     )
     if recipe.residual is not None and recipe.demonstrations is not None:
         raise InputError("a recipe learns a residual on the expert or starts from its "
