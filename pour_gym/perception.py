@@ -86,6 +86,42 @@ class ScanPerception:
         return asdict(self)
 
 
+def _first_labelled(asset: LabelledAsset, seed: int, how: ScanPerception):
+    """The first look and kernel, in order, whose reconstruction the warp labels.
+
+    Returns:
+        (labelled asset, reconstructed mesh, scan settings, point cloud, reconstruction
+        settings) of that attempt.
+
+    Raises:
+        PerceptionError: every reconstruction is closed at the top (naming the kernels and
+            views tried), or the warp refuses one for another reason.
+    """
+    name = f"{asset.name} (scan {seed})"
+    widths = (how.reconstruct.sigma, *how.narrower)
+    looks = [how.scan.elevations_deg] + ([how.higher] if how.higher else [])
+    for elevations in looks:
+        scan = replace(how.scan, elevations_deg=tuple(elevations), seed=int(seed))
+        cloud = turntable_scan(asset.mesh, asset.labels, scan)
+        for sigma in widths:
+            settings = replace(how.reconstruct, sigma=sigma)
+            mesh = reconstruct(cloud, settings).mesh
+            try:
+                labelled = label_container(mesh, source=how.source, name=name)
+                return labelled, mesh, scan, cloud, settings
+            except ClosedContainerError as exc:
+                closed = exc.problem  # a narrower kernel, or a higher look, if one is left
+            except InputError as exc:
+                raise PerceptionError(asset.name, str(exc)) from None
+    kernels = ", ".join(f"{1000 * w:g}" for w in widths)
+    views = " and ".join("/".join(f"{e:g}" for e in elevations) + " deg" for elevations in looks)
+    raise PerceptionError(
+        asset.name,
+        f"its reconstruction is closed with kernels of {kernels} mm from views at {views} "
+        f"({closed})",
+    )
+
+
 def perceive(asset: LabelledAsset, seed: int = 0, how: ScanPerception | None = None):
     """The container as a scan sees it: scanned, reconstructed and labelled by warping.
 
@@ -104,35 +140,7 @@ def perceive(asset: LabelledAsset, seed: int = 0, how: ScanPerception | None = N
             cavity the warp can map onto).
     """
     how = how or ScanPerception()
-    name = f"{asset.name} (scan {seed})"
-    widths = (how.reconstruct.sigma, *how.narrower)
-    looks = [how.scan.elevations_deg] + ([how.higher] if how.higher else [])
-    for elevations in looks:
-        scan = replace(how.scan, elevations_deg=tuple(elevations), seed=int(seed))
-        cloud = turntable_scan(asset.mesh, asset.labels, scan)
-        for sigma in widths:
-            settings = replace(how.reconstruct, sigma=sigma)
-            mesh = reconstruct(cloud, settings).mesh
-            try:
-                labelled = label_container(mesh, source=how.source, name=name)
-                break
-            except ClosedContainerError as exc:
-                closed = exc.problem  # a narrower kernel, or a higher look, if one is left
-            except InputError as exc:
-                raise PerceptionError(asset.name, str(exc)) from None
-        else:
-            continue
-        break
-    else:
-        kernels = ", ".join(f"{1000 * w:g}" for w in widths)
-        views = " and ".join(
-            "/".join(f"{e:g}" for e in elevations) + " deg" for elevations in looks
-        )
-        raise PerceptionError(
-            asset.name,
-            f"its reconstruction is closed with kernels of {kernels} mm from views at {views} "
-            f"({closed})",
-        )
+    labelled, mesh, scan, cloud, settings = _first_labelled(asset, seed, how)
     # The labels are the reconstruction's vertices', in order: its geometry in the frame
     # the scan was taken in, which is the true asset's.
     geometry = container_geometry(mesh, labelled.labels)
