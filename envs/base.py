@@ -14,6 +14,7 @@ from typing import ClassVar
 
 import gymnasium as gym
 import numpy as np
+from gymnasium import spaces
 from gymnasium.utils import EzPickle
 
 from pour_gym.assets import (
@@ -23,15 +24,16 @@ from pour_gym.assets import (
     expand_containers,
     resolve_asset,
 )
+from pour_gym.envs.observations import VECTOR_MODES, parse_obs_mode
 from pour_gym.fluid import precompile
 from pour_gym.fluid.pbf import PBFConfig, default_threads
 from pour_gym.fluid.sdf import SignedDistanceField
 from pour_gym.perception import PERCEPTIONS, perceived_asset
 from pour_gym.sim import Camera, Container, World
-from pour_gym.sim.world import CUP_COLORS, FLUIDS, container_field
+from pour_gym.sim.sensors import SEGMENTS, Body, Sensor, SensorConfig
+from pour_gym.sim.world import CUP_COLORS, FLUIDS, TABLE_COLOR, container_field
 
 RENDER_MODES = ["rgb_array", "human"]
-OBS_MODES = ("features", "state")
 # Which colour each role's container is drawn in.
 ROLE_COLORS = {"source": CUP_COLORS[0], "target": CUP_COLORS[1], "container": CUP_COLORS[1]}
 
@@ -54,11 +56,24 @@ class PourGymEnv(gym.Env, EzPickle):
             (the labelled asset) or ``"scan"`` (:mod:`pour_gym.perception`: scanned,
             reconstructed and labelled by warping; the physics keeps the true mesh).
         scan_seed: the scan's noise seed under ``perception="scan"``.
+        sensor_config: the head camera's image size, points, noise (a
+            :class:`~pour_gym.sim.sensors.SensorConfig` or a dict of its fields), for the
+            ``depth``, ``rgb`` and ``points`` observation modes.
     """
 
     metadata: ClassVar[dict] = {"render_modes": RENDER_MODES, "render_fps": 10}
     # Whether the world's containers get collision shapes (for an arm that touches them).
     solid: ClassVar[bool] = False
+    # Where the sensors' head camera stands (a robot's, looking down at the table), and
+    # which segment each role's container is in a point cloud.
+    head_camera: ClassVar[Camera] = Camera(
+        target=(0.0, 0.0, 0.08), distance=0.4, yaw=0.0, pitch=-40.0, fov=45.0, near=0.1, far=1.0
+    )
+    role_segments: ClassVar[dict[str, int]] = {
+        "source": SEGMENTS["source"],
+        "target": SEGMENTS["target"],
+        "container": SEGMENTS["target"],
+    }
 
     def __init__(
         self,
@@ -71,6 +86,7 @@ class PourGymEnv(gym.Env, EzPickle):
         steps_fluid: bool = True,
         perception: str = "true",
         scan_seed: int = 0,
+        sensor_config: SensorConfig | dict | None = None,
     ):
         if fluid not in FLUIDS:
             raise ValueError(f"fluid must be one of {FLUIDS}, not {fluid!r}")
@@ -100,6 +116,11 @@ class PourGymEnv(gym.Env, EzPickle):
         self._viewer = None
         self._closed = False
         self._started = False
+        self.sensor_config = SensorConfig.of(sensor_config)
+        self._sensor: Sensor | None = None
+        self._sensor_rng: np.random.Generator | None = None
+        self._meshes: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+        self.obs_modes: tuple[str, ...] = ()
         if steps_fluid and fluid == "pbf":
             # The fluid kernel's compile starts now, in helper processes, if it is not
             # cached: it overlaps loading the containers and the first reset.
@@ -118,11 +139,29 @@ class PourGymEnv(gym.Env, EzPickle):
             raise ValueError(f"reward weights must be finite numbers, got {bad}")
         self.reward_weights.update({k: float(w) for k, w in weights.items()})
 
-    @staticmethod
-    def _check_obs_mode(obs_mode: str) -> str:
-        if obs_mode not in OBS_MODES:
-            raise ValueError(f"obs_mode must be one of {OBS_MODES}, not {obs_mode!r}")
-        return obs_mode
+    def _setup_observations(self, obs_mode) -> None:
+        """Set ``obs_mode``, ``obs_modes`` and the observation space (a ``Dict`` for several).
+
+        Call it once the subclass can answer :meth:`_vector_space`.
+        """
+        self.obs_modes = parse_obs_mode(obs_mode)
+        self.obs_mode = obs_mode if isinstance(obs_mode, str) else self.obs_modes
+        parts = {
+            m: self._vector_space(m) if m in VECTOR_MODES else self.sensor_config.space(m)
+            for m in self.obs_modes
+        }
+        if len(parts) == 1:
+            self.observation_space = parts[self.obs_modes[0]]
+        else:
+            self.observation_space = spaces.Dict(parts)
+
+    def _vector_space(self, mode: str) -> spaces.Box:
+        """The space of a vector mode (``"features"`` or ``"state"``); subclasses say."""
+        raise NotImplementedError
+
+    def _vector_observation(self, mode: str) -> np.ndarray:
+        """The observation of a vector mode, float32 within its space; subclasses say."""
+        raise NotImplementedError
 
     @staticmethod
     def _options(options: dict | None, allowed: set[str]) -> dict:
@@ -225,6 +264,11 @@ class PourGymEnv(gym.Env, EzPickle):
                 f"this {type(self).__name__} was closed; make a new environment to go on"
             )
         super().reset(seed=seed)
+        if seed is not None or self._sensor_rng is None:
+            # The sensors' noise and point sampling have a stream of their own, spawned
+            # from the episode seed: with or without sensors, a seed gives the same episodes.
+            seeds = self.np_random.bit_generator.seed_seq
+            self._sensor_rng = np.random.default_rng(seeds.spawn(1)[0])
         self._started = True
         return None
 
@@ -262,6 +306,77 @@ class PourGymEnv(gym.Env, EzPickle):
         """
         weighted = {f"reward_{k}": self.reward_weights[k] * float(v) for k, v in terms.items()}
         return float(sum(weighted.values())), weighted
+
+    # ------------------------------------------------------------------ observations
+    def _observation(self):
+        """The observation in the env's mode(s): an array, or a dict of them by mode."""
+        parts = {}
+        frame = None
+        for mode in self.obs_modes:
+            if mode in VECTOR_MODES:
+                parts[mode] = self._vector_observation(mode)
+                continue
+            if frame is None:
+                frame = self.capture(rgb="rgb" in self.obs_modes)
+            if mode == "depth":
+                parts[mode] = self.sensor.depth_image(frame)
+            elif mode == "rgb":
+                parts[mode] = frame.rgb
+            else:
+                pose = None
+                if self.sensor_config.points_frame == "source":
+                    pose = self._sensor_frame_pose()
+                parts[mode] = self.sensor.point_cloud(frame, self._sensor_rng, pose)
+        if len(parts) == 1:
+            return parts[self.obs_modes[0]]
+        return parts
+
+    @property
+    def sensor(self) -> Sensor:
+        """The head camera (made at first use)."""
+        if self._sensor is None:
+            self._sensor = Sensor(self.head_camera, self.sensor_config)
+        return self._sensor
+
+    def capture(self, rgb: bool = False):
+        """What the head camera sees now (a :class:`~pour_gym.sim.sensors.Frame`)."""
+        self._show_scene()
+        world = self.world
+        bodies = [
+            Body(
+                *self._drawn_mesh(role),
+                rotation=c.rotation,
+                translation=c.translation,
+                segment=self.role_segments[role],
+                color=ROLE_COLORS.get(role, CUP_COLORS[2])[:3],
+            )
+            for role, c in self._placed.items()
+        ]
+        radius = self.sensor_config.splat * world.config.spacing
+        table = TABLE_COLOR[:3] if world.table else None
+        return self.sensor.capture(
+            bodies, world.particles, radius, table, self._sensor_rng, rgb=rgb
+        )
+
+    def _drawn_mesh(self, role: str) -> tuple[np.ndarray, np.ndarray]:
+        """The mesh of a role's container as the sensor draws it (made once)."""
+        name = self._names[role]
+        if name not in self._meshes:
+            self._meshes[name] = self.sensor.mesh(self.asset(name).mesh)
+        return self._meshes[name]
+
+    def _show_scene(self) -> None:
+        """Make the world show the episode before a picture.
+
+        A subclass that keeps its world empty until asked (as TiltPour's hydrostatic label
+        does) fills it here.
+        """
+
+    def _sensor_frame_pose(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(R, origin)`` of ``points_frame="source"``: the source's (or only) container."""
+        role = "source" if "source" in self._placed else "container"
+        c = self._placed[role]
+        return c.rotation, c.translation
 
     # ------------------------------------------------------------------ pictures
     def render(self) -> np.ndarray | None:

@@ -7,13 +7,16 @@ from gymnasium import spaces
 from gymnasium.utils import EzPickle
 
 from pour_gym.envs.base import PourGymEnv
+from pour_gym.envs.observations import VECTOR_MODES, parse_obs_mode
 from pour_gym.envs.task import DROP
 from pour_gym.features import fill_fraction, relative_distance_height
 from pour_gym.fluid.pbf import PBFConfig
 from pour_gym.sim import Camera
+from pour_gym.sim.sensors import SensorConfig
 
 FEATURE_NAMES = ("f1", "f2", "f3")
 STATE_NAMES = ("x", "y", "z", "size_x", "size_y", "size_z", "fill")
+OBS_NAMES = {"features": FEATURE_NAMES, "state": STATE_NAMES}
 STATE_SCALE = 0.5  # m: positions and sizes in the state observation are over this
 
 
@@ -38,7 +41,9 @@ class ParticleDropEnv(PourGymEnv):
     centre over the container's height) and f3 (fluid in the container over its volume),
     from :mod:`pour_gym.features`. ``obs_mode="state"``: ``Box(-1, 1, (7,), float32)``:
     the blob's position relative to the container's base and the container's
-    bounding-box size, both in units of 0.5 m, and the fill fraction.
+    bounding-box size, both in units of 0.5 m, and the fill fraction. The sensor modes
+    (``"depth"``, ``"rgb"``, ``"points"``, :mod:`pour_gym.sim.sensors`) see the container
+    and the blob from a head camera above the table; a tuple of modes gives a ``Dict``.
 
     ## Rewards
     ``correct`` = 1 for a right decision; ``spill`` = -1 for releasing fluid that does not
@@ -56,7 +61,7 @@ class ParticleDropEnv(PourGymEnv):
     | argument | type | default | meaning |
     |---|---|---|---|
     | ``objects`` | str, path or list | ``"train"`` | a split, names, mesh files, asset folders |
-    | ``obs_mode`` | str | ``"features"`` | ``"features"`` or ``"state"`` |
+    | ``obs_mode`` | str or tuple | ``"features"`` | a mode (see above) or a tuple of them |
     | ``fluid`` | str | ``"pbf"`` | ``"pbf"`` or ``"bullet"`` |
     | ``fluid_config`` | PBFConfig or dict | None | fluid parameters |
     | ``num_threads`` | int or None | None | fluid threads |
@@ -66,6 +71,7 @@ class ParticleDropEnv(PourGymEnv):
     | ``correct_weight`` | float | 1.0 | weight of ``correct`` |
     | ``spill_weight`` | float | 2.0 | weight of ``spill`` |
     | ``render_mode`` | str or None | None | ``"rgb_array"`` or ``"human"`` |
+    | ``sensor_config`` | SensorConfig or dict | None | image size, points, noise |
 
     ``reset(options=...)`` accepts ``container`` (a name or mesh path), ``spawn`` (xyz in
     the container's frame, m) and ``fill`` (fraction of the volume).
@@ -76,7 +82,9 @@ class ParticleDropEnv(PourGymEnv):
     is not about to overflow (fills up to 80 % of the volume).
 
     ## Version History
-    * v0 (this release): the features from :mod:`pour_gym.features`; reward weights and
+    * v0 (this release): the sensor observation modes (``"depth"``, ``"rgb"``,
+      ``"points"``, tuples of modes) and ``sensor_config`` (the defaults change nothing);
+      the features from :mod:`pour_gym.features`; reward weights and
       ``num_threads`` are arguments; a user's mug of two overlapping bodies no longer
       leaves particles inside its base (its collision field is signed by where fluid
       can be, not by ray parity); a push out of a wall adds no more speed than the
@@ -99,6 +107,7 @@ class ParticleDropEnv(PourGymEnv):
         correct_weight: float = 1.0,
         spill_weight: float = 2.0,
         render_mode: str | None = None,
+        sensor_config: SensorConfig | dict | None = None,
     ):
         EzPickle.__init__(
             self,
@@ -113,6 +122,7 @@ class ParticleDropEnv(PourGymEnv):
             correct_weight=correct_weight,
             spill_weight=spill_weight,
             render_mode=render_mode,
+            sensor_config=sensor_config,
         )
         super().__init__(
             fluid,
@@ -121,8 +131,9 @@ class ParticleDropEnv(PourGymEnv):
             render_mode,
             Camera(distance=0.4, pitch=-35.0),
             {"correct": correct_weight, "spill": spill_weight},
+            sensor_config=sensor_config,
         )
-        self._check_obs_mode(obs_mode)
+        parse_obs_mode(obs_mode)  # a bad mode is named before any other argument
         if blob < 1:
             raise ValueError(f"blob must be at least 1 particle, not {blob}")
         if not 0.0 <= fill_range[0] <= fill_range[1] <= 0.8:
@@ -130,18 +141,12 @@ class ParticleDropEnv(PourGymEnv):
         if not drop_time > 0:
             raise ValueError(f"drop_time must be positive, not {drop_time}")
         self.containers = self._containers(objects)
-        self.obs_mode = obs_mode
         self.blob = int(blob)
         self.fill_range = (float(fill_range[0]), float(fill_range[1]))
         self.dt = float(drop_time)
-        if obs_mode == "features":
-            self.obs_names = FEATURE_NAMES
-            self.observation_space = spaces.Box(
-                np.array([0.0, -2.0, 0.0], np.float32), np.array([4.0, 3.0, 1.0], np.float32)
-            )
-        else:
-            self.obs_names = STATE_NAMES
-            self.observation_space = spaces.Box(-1.0, 1.0, (len(STATE_NAMES),), np.float32)
+        self._setup_observations(obs_mode)
+        vector = [m for m in self.obs_modes if m in VECTOR_MODES]
+        self.obs_names = () if not vector else OBS_NAMES[vector[0]]
         self.action_space = spaces.Box(-1.0, 1.0, (1,), np.float32)
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
@@ -209,13 +214,20 @@ class ParticleDropEnv(PourGymEnv):
         f1, f2 = relative_distance_height(g, where, c.rotation, c.translation)
         return np.array([f1[0], f2[0], fill_fraction(self.fill * g.cavity_volume, g)])
 
-    def _observation(self) -> np.ndarray:
-        if self.obs_mode == "features":
+    def _vector_space(self, mode: str) -> spaces.Box:
+        if mode == "features":
+            return spaces.Box(
+                np.array([0.0, -2.0, 0.0], np.float32), np.array([4.0, 3.0, 1.0], np.float32)
+            )
+        return spaces.Box(-1.0, 1.0, (len(STATE_NAMES),), np.float32)
+
+    def _vector_observation(self, mode: str) -> np.ndarray:
+        if mode == "features":
             obs = self._features
         else:
             size = np.ptp(self.container.asset.mesh.bounds, axis=0)
             obs = np.array([*(self.spawn / STATE_SCALE), *(size / STATE_SCALE), self.fill])
-        space = self.observation_space
+        space = self._vector_space(mode)
         return np.clip(obs, space.low, space.high).astype(np.float32)
 
     def _info(self, terms: dict | None = None, **outcome) -> dict:

@@ -9,10 +9,12 @@ from scipy.spatial.transform import Rotation
 
 from pour_gym.envs.base import PourGymEnv
 from pour_gym.envs.holders import make_holder
+from pour_gym.envs.observations import VECTOR_MODES, parse_obs_mode
 from pour_gym.envs.task import POUR
 from pour_gym.features import ContainerGeometry, fluid_features, relative_distance_height
 from pour_gym.fluid.pbf import PBFConfig
 from pour_gym.sim import Camera
+from pour_gym.sim.sensors import SensorConfig
 
 FEATURE_NAMES = (
     "lip_dx",  # (target rim centre - lip) along x, over the target's rim radius
@@ -102,7 +104,12 @@ class PourEnv(PourGymEnv):
     positions (m), tilt (rad), the target's yaw, bounding-box sizes (in 10 cm), particle
     counts over the initial fill; no warped features. ``hide`` names entries that read 0 in
     either mode (the space keeps its shape): a learner kept blind to, say, the containers'
-    sizes, which are constants when it trains on one cup.
+    sizes, which are constants when it trains on one cup. The sensor modes
+    (``"depth"``, ``"rgb"``, ``"points"``; :mod:`pour_gym.sim.sensors`) are what a head
+    camera facing the two containers across the table sees (84 x 84 by default,
+    ``sensor_config``), the fluid drawn as one body of water; a tuple of modes, e.g.
+    ``("features", "depth")``, gives a ``Dict`` keyed by mode. The arm of
+    ``holder="panda"`` is not drawn, so sensor modes are refused with it.
 
     What the observation knows of the containers' shapes (rims, heights, volumes, lip
     points, bounding boxes) comes from their labelled assets, or with
@@ -149,7 +156,7 @@ class PourEnv(PourGymEnv):
     | ``objects`` | str, path or list | ``"train"`` | both containers (a split, names, files) |
     | ``source_objects`` | same | None | the source containers (instead of ``objects``) |
     | ``target_objects`` | same | None | the target containers (instead of ``objects``) |
-    | ``obs_mode`` | str | ``"features"`` | ``"features"`` or ``"state"`` |
+    | ``obs_mode`` | str or tuple | ``"features"`` | a mode (see above) or a tuple of them |
     | ``fluid`` | str | ``"pbf"`` | ``"pbf"`` or ``"bullet"`` (rigid spheres, slow) |
     | ``fluid_config`` | PBFConfig or dict | None | fluid parameters |
     | ``num_threads`` | int or None | None | fluid threads (None: cores, one in a worker) |
@@ -174,6 +181,7 @@ class PourEnv(PourGymEnv):
     | ``perception`` | str | ``"true"`` | the features' geometry: ``"true"`` or ``"scan"`` |
     | ``scan_seed`` | int | 0 | the scan's noise seed (``perception="scan"``) |
     | ``render_mode`` | str or None | None | ``"rgb_array"`` or ``"human"`` |
+    | ``sensor_config`` | SensorConfig or dict | None | image size, points, noise |
     | ``holder`` | str | ``"free"`` | what holds the source (:mod:`pour_gym.envs.holders`) |
     | ``**holder_kwargs`` | | | the holder's own arguments |
 
@@ -195,8 +203,9 @@ class PourEnv(PourGymEnv):
       ``overshoot_weight=1.0`` (progress and overshoot together then sum to minus the
       change of |poured - T| / T: pouring too much costs what pouring too little does,
       and pouring everything no longer costs more than never pouring);
-      ``success_weight=2.0``. Arguments ``hide``, ``perception`` and ``scan_seed`` added
-      (both versions; the defaults change nothing).
+      ``success_weight=2.0``. Arguments ``hide``, ``perception``, ``scan_seed`` and
+      ``sensor_config``, and the sensor observation modes (``"depth"``, ``"rgb"``,
+      ``"points"``, tuples of modes), added (both versions; the defaults change nothing).
     * v0 (this release): the fluid takes substeps by the CFL bound and puts back particles
       that tunnelled into a wall (``info["fluid_corrections"]``), so no action raises; an
       episode ends after a pour only when ``pour_threshold`` particles stayed out for
@@ -219,6 +228,12 @@ class PourEnv(PourGymEnv):
     """
 
     task = POUR
+    # A robot's head camera across the table, looking down steeply enough to see into the
+    # cups: source and target side by side.
+    head_camera = Camera(
+        target=(0.1, 0.0, 0.12), distance=0.42, yaw=0.0, pitch=-60.0, fov=50.0, near=0.1,
+        far=0.9,
+    )  # fmt: skip
 
     def __init__(
         self,
@@ -250,6 +265,7 @@ class PourEnv(PourGymEnv):
         perception: str = "true",
         scan_seed: int = 0,
         render_mode: str | None = None,
+        sensor_config: SensorConfig | dict | None = None,
         holder: str = "free",
         **holder_kwargs,
     ):
@@ -283,6 +299,7 @@ class PourEnv(PourGymEnv):
             perception=perception,
             scan_seed=scan_seed,
             render_mode=render_mode,
+            sensor_config=sensor_config,
             holder=holder,
             **holder_kwargs,
         )
@@ -308,8 +325,14 @@ class PourEnv(PourGymEnv):
             },
             perception=perception,
             scan_seed=scan_seed,
+            sensor_config=sensor_config,
         )
-        self._check_obs_mode(obs_mode)
+        modes = parse_obs_mode(obs_mode)
+        if holder != "free" and set(modes) - set(VECTOR_MODES):
+            raise ValueError(
+                f"obs_mode {obs_mode!r} with holder={holder!r}: the sensors do not draw the "
+                "arm yet, so their pictures would be wrong; use 'features' or 'state'"
+            )
         if source_particles is not None and source_particles < 100:
             raise ValueError(f"source_particles must be at least 100, not {source_particles}")
         lo, hi = amount_range
@@ -334,7 +357,6 @@ class PourEnv(PourGymEnv):
             # pipeline cannot take is refused here, not at some reset in the middle of a run.
             for name in dict.fromkeys(self.sources + self.targets):
                 self.seen(name)
-        self.obs_mode = obs_mode
         self.source_particles = None if source_particles is None else int(source_particles)
         self.amount_range = (int(lo), int(hi))
         self.max_speed = float(max_speed)
@@ -344,20 +366,22 @@ class PourEnv(PourGymEnv):
         self.pour_threshold = int(pour_threshold)
         self.pour_steps = int(pour_steps)
         self.dt = 0.1
-        names = FEATURE_NAMES if obs_mode == "features" else STATE_NAMES
-        self.obs_names = names + self.holder.obs_names
+        vector = [m for m in modes if m in VECTOR_MODES]
+        self.obs_names = ()
+        if vector:
+            names = FEATURE_NAMES if vector[0] == "features" else STATE_NAMES
+            self.obs_names = names + self.holder.obs_names
         hide = (hide,) if isinstance(hide, str) else tuple(hide)
         unknown = sorted(set(hide) - set(self.obs_names))
         if unknown:
             raise ValueError(
                 f"hide names observation entries; {obs_mode!r} has no {unknown} (it has "
-                f"{', '.join(self.obs_names)})"
+                f"{', '.join(self.obs_names) or 'no vector entries'})"
             )
         self.hide = hide
         # Indices, not names, on every step.
         self._hidden = np.array([self.obs_names.index(h) for h in self.hide], dtype=np.int64)
-        n = len(self.obs_names)
-        self.observation_space = spaces.Box(-OBS_LIMIT, OBS_LIMIT, (n,), np.float32)
+        self._setup_observations(obs_mode)
         self.action_space = self.holder.action_space()
 
     # ------------------------------------------------------------------ episode
@@ -536,8 +560,15 @@ class PourEnv(PourGymEnv):
             and self.tilt < UPRIGHT_DEG
         )
 
-    def _observation(self) -> np.ndarray:
-        obs = self.observe(self.obs_mode)
+    def _sensor_frame_pose(self) -> tuple[np.ndarray, np.ndarray]:
+        """The source's lip frame: its rotation, with the lip as origin."""
+        return self.source.rotation, self.lip
+
+    def _vector_space(self, mode: str) -> spaces.Box:
+        return spaces.Box(-OBS_LIMIT, OBS_LIMIT, (len(self.obs_names),), np.float32)
+
+    def _vector_observation(self, mode: str) -> np.ndarray:
+        obs = self.observe(mode)
         obs[self._hidden] = 0.0
         return obs
 
@@ -548,7 +579,8 @@ class PourEnv(PourGymEnv):
         both, e.g. the scripted policy (which reads features) recording demonstrations for
         a state agent.
         """
-        self._check_obs_mode(obs_mode)
+        if obs_mode not in VECTOR_MODES:
+            raise ValueError(f"observe() gives one of {VECTOR_MODES}, not {obs_mode!r}")
         c = self._counts
         t = self.target_amount
         # What the policy knows of the containers (perceived, with perception="scan"); the

@@ -2,16 +2,20 @@
 
 from __future__ import annotations
 
+from typing import ClassVar
+
 import numpy as np
 from gymnasium import spaces
 from gymnasium.utils import EzPickle
 from scipy.spatial.transform import Rotation
 
 from pour_gym.envs.base import PourGymEnv
+from pour_gym.envs.observations import VECTOR_MODES, parse_obs_mode
 from pour_gym.envs.task import TILT
 from pour_gym.features import cavity_points, fluid_features, mouth_volume
 from pour_gym.fluid.pbf import PBFConfig
 from pour_gym.sim import Camera
+from pour_gym.sim.sensors import SEGMENTS, SensorConfig
 from pour_gym.sim.spawn import cavity_lattice
 
 LABEL_MODES = ("hydrostatic", "simulate")
@@ -20,6 +24,7 @@ LABEL_MODES = ("hydrostatic", "simulate")
 AXIS = np.array([0.0, -1.0, 0.0])
 TILT_TIME, HOLD_TIME = 6.0, 1.0  # s, for the simulated label
 STATE_LIMIT = 4.0  # the state observation's bound (sizes in 10 cm, a wide bowl is ~2)
+OBS_NAMES = {"features": ("f4",), "state": ("tilt_rad", "fill", "size_x", "size_y", "size_z")}
 
 
 class TiltPourEnv(PourGymEnv):
@@ -47,7 +52,10 @@ class TiltPourEnv(PourGymEnv):
     ## Observation Space
     ``obs_mode="features"``: ``Box(0, 1, (1,), float32)``, f4. ``obs_mode="state"``:
     ``Box(-4, 4, (5,), float32)``: the tilt angle (rad), the fill fraction and the
-    container's bounding-box size (in 10 cm).
+    container's bounding-box size (in 10 cm). The sensor modes (``"depth"``, ``"rgb"``,
+    ``"points"``, :mod:`pour_gym.sim.sensors`) see the tilted container from a head camera
+    beside it, with its fluid as the label's quasi-static limit has it: the fill at rest,
+    rotated with the container (the same fluid as f4's). A tuple of modes gives a ``Dict``.
 
     ## Rewards
     ``correct`` = 1 for a right prediction; ``spill`` = -1 for predicting no pour when it
@@ -64,7 +72,7 @@ class TiltPourEnv(PourGymEnv):
     | argument | type | default | meaning |
     |---|---|---|---|
     | ``objects`` | str, path or list | ``"train"`` | a split, names, mesh files, asset folders |
-    | ``obs_mode`` | str | ``"features"`` | ``"features"`` or ``"state"`` |
+    | ``obs_mode`` | str or tuple | ``"features"`` | a mode (see above) or a tuple of them |
     | ``fluid`` | str | ``"pbf"`` | ``"pbf"`` or ``"bullet"`` (simulated labels) |
     | ``fluid_config`` | PBFConfig or dict | None | fluid parameters |
     | ``num_threads`` | int or None | None | fluid threads (simulated labels) |
@@ -74,11 +82,14 @@ class TiltPourEnv(PourGymEnv):
     | ``correct_weight`` | float | 1.0 | weight of ``correct`` |
     | ``spill_weight`` | float | 2.0 | weight of ``spill`` |
     | ``render_mode`` | str or None | None | ``"rgb_array"`` or ``"human"`` |
+    | ``sensor_config`` | SensorConfig or dict | None | image size, points, noise |
 
     ``reset(options=...)`` accepts ``container``, ``fill`` and ``tilt_deg``.
 
     ## Version History
-    * v0 (this release): the hydrostatic label measures from the mouth's lowest point (it
+    * v0 (this release): the sensor observation modes (``"depth"``, ``"rgb"``,
+      ``"points"``, tuples of modes) and ``sensor_config`` (the defaults change nothing);
+      the hydrostatic label measures from the mouth's lowest point (it
       measured from the lowest rim vertex, the outer edge of a thick rim, and called pours
       4 degrees early); f4 from :mod:`pour_gym.features`; reward weights and
       ``num_threads`` are arguments; a push out of a wall adds no more speed than the
@@ -87,6 +98,13 @@ class TiltPourEnv(PourGymEnv):
     """
 
     task = TILT
+    # The container is the one that pours: the source's segment. The camera looks from
+    # above into the mouth as it tilts (towards -x), where the water meets the lip.
+    role_segments: ClassVar[dict[str, int]] = {"container": SEGMENTS["source"]}
+    head_camera = Camera(
+        target=(-0.04, 0.0, 0.05), distance=0.25, yaw=-90.0, pitch=-35.0, fov=45.0, near=0.05,
+        far=0.6,
+    )  # fmt: skip
 
     def __init__(
         self,
@@ -101,6 +119,7 @@ class TiltPourEnv(PourGymEnv):
         correct_weight: float = 1.0,
         spill_weight: float = 2.0,
         render_mode: str | None = None,
+        sensor_config: SensorConfig | dict | None = None,
     ):
         EzPickle.__init__(
             self,
@@ -115,6 +134,7 @@ class TiltPourEnv(PourGymEnv):
             correct_weight=correct_weight,
             spill_weight=spill_weight,
             render_mode=render_mode,
+            sensor_config=sensor_config,
         )
         super().__init__(
             fluid,
@@ -124,8 +144,9 @@ class TiltPourEnv(PourGymEnv):
             Camera(distance=0.4, pitch=-20.0),
             {"correct": correct_weight, "spill": spill_weight},
             steps_fluid=label_mode == "simulate",
+            sensor_config=sensor_config,
         )
-        self._check_obs_mode(obs_mode)
+        parse_obs_mode(obs_mode)  # a bad mode is named before any other argument
         if label_mode not in LABEL_MODES:
             raise ValueError(f"label_mode must be one of {LABEL_MODES}, not {label_mode!r}")
         if not 0.0 < fill_range[0] <= fill_range[1] <= 1.0:
@@ -133,17 +154,13 @@ class TiltPourEnv(PourGymEnv):
         if not 0.0 <= tilt_range[0] <= tilt_range[1] <= 180.0:
             raise ValueError(f"tilt_range must lie within [0, 180] degrees, not {tilt_range}")
         self.containers = self._containers(objects)
-        self.obs_mode = obs_mode
         self.label_mode = label_mode
         self.fill_range = (float(fill_range[0]), float(fill_range[1]))
         self.tilt_range = (float(tilt_range[0]), float(tilt_range[1]))
         self.dt = TILT_TIME + HOLD_TIME
-        if obs_mode == "features":
-            self.obs_names = ("f4",)
-            self.observation_space = spaces.Box(0.0, 1.0, (1,), np.float32)
-        else:
-            self.obs_names = ("tilt_rad", "fill", "size_x", "size_y", "size_z")
-            self.observation_space = spaces.Box(-STATE_LIMIT, STATE_LIMIT, (5,), np.float32)
+        self._setup_observations(obs_mode)
+        vector = [m for m in self.obs_modes if m in VECTOR_MODES]
+        self.obs_names = OBS_NAMES[vector[0]] if vector else ()
         self.action_space = spaces.Box(-1.0, 1.0, (1,), np.float32)
         # Per container, computed once: the rest lattice (it never enters the world in the
         # hydrostatic mode) and the cavity's voxel centres.
@@ -222,20 +239,33 @@ class TiltPourEnv(PourGymEnv):
 
     def render(self):
         """The container at the episode's angle (with its fluid after a simulated label)."""
-        if self.render_mode is not None and not self._world_ready:
+        if self.render_mode is not None:
+            self._show_scene()
+        return super().render()
+
+    def _show_scene(self) -> None:
+        """The container at the episode's angle, its rest fill rotated along.
+
+        Until a simulated label has put its own fluid there.
+        """
+        if not self._world_ready:
             container = self._place({"container": self.name})["container"]
             self.world.teleport(container, np.zeros(3), self.rotation)
             self.world.add_particles(self.rest @ self.rotation.T)
             self._world_ready = True
-        return super().render()
 
-    def _observation(self) -> np.ndarray:
-        if self.obs_mode == "features":
+    def _vector_space(self, mode: str) -> spaces.Box:
+        if mode == "features":
+            return spaces.Box(0.0, 1.0, (1,), np.float32)
+        return spaces.Box(-STATE_LIMIT, STATE_LIMIT, (5,), np.float32)
+
+    def _vector_observation(self, mode: str) -> np.ndarray:
+        if mode == "features":
             obs = np.array([self.f4])
         else:
             size = np.ptp(self.episode_asset.mesh.bounds, axis=0) / 0.1
             obs = np.array([np.radians(self.tilt), self.fill, *size])
-        space = self.observation_space
+        space = self._vector_space(mode)
         return np.clip(obs, space.low, space.high).astype(np.float32)
 
     def _info(self, terms: dict | None = None, **outcome) -> dict:

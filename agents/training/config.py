@@ -17,6 +17,7 @@ from pathlib import Path
 import yaml
 
 from pour_gym.envs import POUR_V0
+from pour_gym.envs.observations import OBS_MODES
 from pour_gym.errors import InputError
 
 # Algorithm name -> "module:class"; imported when used (sb3-contrib is optional).
@@ -26,7 +27,6 @@ ALGORITHMS = {
     "td3": "stable_baselines3:TD3",
     "tqc": "sb3_contrib:TQC",
 }
-OBS_MODES = ("features", "state")
 
 
 def algorithm(name: str):
@@ -67,7 +67,9 @@ class TrainConfig:
     )
     timesteps: int = field(default=20_000, metadata=_doc("environment steps in total"))
     seed: int = field(default=0, metadata=_doc("seed of the algorithm and the environments"))
-    obs_mode: str = field(default="features", metadata=_doc("features or state"))
+    obs_mode: str = field(
+        default="features", metadata=_doc("features, state, or a sensor: depth, rgb, points")
+    )
     out: str = field(
         default="", metadata=_doc("run directory (default runs/<env>_<algo>_<objects>_...)")
     )

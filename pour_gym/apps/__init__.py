@@ -2,6 +2,7 @@
 
 ``pour-gym`` (:mod:`~pour_gym.apps.cli`, its subcommands in
 :mod:`~pour_gym.apps.commands`), the benchmarks (:mod:`~pour_gym.apps.bench`), the
-random-action soak (:mod:`~pour_gym.apps.soak`) and the demo (:mod:`~pour_gym.apps.demo`).
+random-action soak (:mod:`~pour_gym.apps.soak`), the demo (:mod:`~pour_gym.apps.demo`) and
+the sensors' pictures (:mod:`~pour_gym.apps.sensor_pictures`).
 Nothing in the library imports them.
 """

@@ -109,7 +109,9 @@ def build_parser() -> argparse.ArgumentParser:
         "reports: reconstruction and warping beside the thesis's tables, generalisation, "
         "baselines over seeds",
     )
-    p.add_argument("what", choices=["reconstruction", "warping", "generalisation", "baselines"])
+    p.add_argument(
+        "what", choices=["reconstruction", "warping", "generalisation", "baselines", "sensors"]
+    )
     p.add_argument(
         "--runs", nargs="+", default=[],
         help="generalisation, baselines: train.py run directories or folders of them",
@@ -119,7 +121,9 @@ def build_parser() -> argparse.ArgumentParser:
         help="baselines: the scripted expert's evaluation (pour-gym evaluate scripted --json), "
         "added as a reference row",
     )
-    p.add_argument("--out", help="generalisation: folder for report.md and plots")
+    p.add_argument(
+        "--out", help="generalisation: folder for report.md and plots; sensors: for the PNGs"
+    )
     p.add_argument(
         "--family",
         help="warping, generalisation: over a procedural family (procedural:test), results "
@@ -185,6 +189,10 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--repeats", type=int, default=3)
     p.add_argument("--envs", help="coldstart: comma-separated env ids (default: every one)")
+    p.add_argument(
+        "--sections",
+        help="envs: comma-separated parts to run, of pour, vec, rows, sensors (default: all)",
+    )
 
     p = add("soak", commands.cmd_soak, "random actions over containers: what must never happen")
     p.add_argument("--env", default=POUR_V0)

@@ -200,7 +200,7 @@ def cmd_measure(args: argparse.Namespace) -> Output:
 
 
 def cmd_report(args: argparse.Namespace) -> Output:
-    """Reports: reconstruction (ch. 3), warping (ch. 4), generalisation, baselines."""
+    """Reports: reconstruction (ch. 3), warping (ch. 4), generalisation, baselines, sensors."""
     from tqdm import tqdm
 
     from pour_gym.mesh.modelgen import generate_model, reconstruction_table
@@ -221,6 +221,15 @@ def cmd_report(args: argparse.Namespace) -> Output:
                            args.scan_seed)  # fmt: skip
         out = write_family_study(doc, args.out)
         return (doc, lambda: (out / "report.md").read_text())
+    if args.what == "sensors":
+        from pour_gym.apps.sensor_pictures import sensor_sheets
+        from pour_gym.envs import PARTICLE_DROP_V0, POUR_V0, TILT_POUR_V0
+
+        if not args.out:
+            raise InputError("report sensors needs --out DIR (for a PNG per environment)")
+        paths = sensor_sheets([POUR_V0, TILT_POUR_V0, PARTICLE_DROP_V0], args.out, args.seed)
+        doc = {"pictures": [str(p) for p in paths]}
+        return (doc, lambda: "\n".join(doc["pictures"]))
     if args.what == "baselines":
         from pour_gym.agents.baselines import REPORT, baselines_report
 
@@ -296,6 +305,7 @@ def cmd_build_assets(args: argparse.Namespace) -> Output:
 def cmd_bench(args: argparse.Namespace) -> Output:
     """Benchmarks."""
     from pour_gym.apps.bench import (
+        ENV_SECTIONS,
         accuracy_table,
         bench_accuracy,
         bench_coldstart,
@@ -327,7 +337,8 @@ def cmd_bench(args: argparse.Namespace) -> Output:
         result = bench_coldstart(ids)
         return (result, lambda: coldstart_table(result))
     if args.what == "envs":
-        result = bench_envs(repeats=args.repeats)
+        sections = tuple(args.sections.split(",")) if args.sections else ENV_SECTIONS
+        result = bench_envs(repeats=args.repeats, sections=sections)
         return (result, lambda: envs_table(result))
     if args.what == "ray":
         result = bench_ray(repeats=args.repeats)

@@ -4,6 +4,8 @@
 - :mod:`pour_gym.sim.spawn`: lattice blocks and container fills.
 - :mod:`pour_gym.sim.census`: which container each particle is in.
 - :mod:`pour_gym.sim.camera`: pictures of a world with its particles.
+- :mod:`pour_gym.sim.raster`: the CPU rasteriser the sensors and the pictures' water use.
+- :mod:`pour_gym.sim.sensors`: a head camera's depth, colour and point-cloud observations.
 """
 
 from pour_gym.sim.camera import Camera

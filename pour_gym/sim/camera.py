@@ -1,8 +1,9 @@
 """Pictures of a world: pybullet's TinyRenderer for the bodies, particles splatted on top.
 
 TinyRenderer runs headless on the CPU. The particles are not bodies (thousands of sphere
-bodies would make every frame slow), so they are drawn after the bodies as shaded discs,
-each hidden where the depth buffer says a body is in front of it.
+bodies would make every frame slow), so they are drawn after the bodies, as the sensors draw
+them (:mod:`pour_gym.sim.raster`): spheres smoothed into one lit surface of water, hidden
+where the depth buffer says a body is in front of it.
 """
 
 from __future__ import annotations
@@ -12,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 import pybullet
 
-WATER = np.array([0.20, 0.45, 0.90])
+from pour_gym.sim.raster import composite_water, draw_spheres
 
 
 @dataclass(frozen=True)
@@ -27,6 +28,8 @@ class Camera:
         width: image width, pixels.
         height: image height, pixels.
         fov: vertical field of view, degrees.
+        near: nearest depth drawn, m (a depth sensor's range starts here).
+        far: farthest depth drawn, m (and where a depth sensor's range ends).
     """
 
     target: tuple[float, float, float] = (0.0, 0.0, 0.1)
@@ -49,9 +52,28 @@ class Camera:
         )
         return view, proj
 
+    def view(self) -> np.ndarray:
+        """(4, 4) world-to-eye transform (OpenGL's: the camera looks along -z, y up)."""
+        return np.asarray(self.matrices()[0], dtype=np.float64).reshape(4, 4).T
+
+    def intrinsics(self) -> tuple[float, float, float]:
+        """``(f, cx, cy)``: the focal length and principal point, pixels (square pixels)."""
+        f = 0.5 * self.height / np.tan(np.radians(self.fov) / 2.0)
+        return float(f), 0.5 * self.width, 0.5 * self.height
+
+
+def to_eye(view: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """(N, 3) world points in eye coordinates (float64, C-contiguous for the rasteriser)."""
+    pts = np.asarray(points, dtype=np.float64)
+    return np.ascontiguousarray(pts @ view[:3, :3].T + view[:3, 3])
+
 
 def render(client, camera: Camera, particles: np.ndarray | None, radius: float) -> np.ndarray:
     """An RGB picture of the world with its particles.
+
+    The bodies are pybullet's (TinyRenderer, so an arm is drawn too); the water is the
+    sensors' (:func:`pour_gym.sim.raster.composite_water`): spheres of ``radius`` smoothed
+    into one lit surface, hidden where a body is in front.
 
     Args:
         client: the world's pybullet client.
@@ -77,40 +99,24 @@ def render(client, camera: Camera, particles: np.ndarray | None, radius: float) 
     image = np.asarray(rgba, dtype=np.uint8).reshape(h, w, 4)[:, :, :3].copy()
     if particles is None or len(particles) == 0:
         return image
-    n, f = camera.near, camera.far
+    n, far = camera.near, camera.far
     zbuf = np.asarray(depth, dtype=np.float64).reshape(h, w)
     # The depth buffer holds normalised device depth; eye-space distance is linear in 1/z.
-    scene_depth = f * n / (f - (f - n) * zbuf)
-    v = np.asarray(view).reshape(4, 4).T
-    p = np.asarray(proj).reshape(4, 4).T
-    pts = np.c_[np.asarray(particles, dtype=np.float64), np.ones(len(particles))]
-    eye = pts @ v.T
-    clip = eye @ p.T
-    dist = -eye[:, 2]
-    ok = dist > n
-    ndc = clip[ok, :2] / clip[ok, 3:4]
-    px = (ndc[:, 0] + 1.0) * 0.5 * w
-    py = (1.0 - ndc[:, 1]) * 0.5 * h
-    rpx = radius * p[1, 1] * 0.5 * h / dist[ok]
-    d = dist[ok]
-    # Far to near, so that nearer particles cover farther ones.
-    for k in np.argsort(-d):
-        r = max(rpx[k], 0.8)
-        x0, x1 = int(max(px[k] - r, 0)), int(min(px[k] + r + 1, w))
-        y0, y1 = int(max(py[k] - r, 0)), int(min(py[k] + r + 1, h))
-        if x0 >= x1 or y0 >= y1:
-            continue
-        yy, xx = np.mgrid[y0:y1, x0:x1]
-        u = (xx + 0.5 - px[k]) / r
-        t = (yy + 0.5 - py[k]) / r
-        rr = u * u + t * t
-        visible = (rr <= 1.0) & (d[k] - radius < scene_depth[y0:y1, x0:x1])
-        if not visible.any():
-            continue
-        # A sphere lit from the upper left: brighter towards its lit side.
-        nz = np.sqrt(np.clip(1.0 - rr, 0.0, 1.0))
-        shade = np.clip(0.55 + 0.45 * (nz * 0.8 - u * 0.3 - t * 0.3), 0.3, 1.2)
-        colour = np.clip(WATER[None, None, :] * shade[..., None] * 255.0, 0, 255)
-        patch = image[y0:y1, x0:x1]
-        patch[visible] = colour[visible].astype(np.uint8)
+    scene = far * n / (far - (far - n) * zbuf)
+    f, cx, cy = camera.intrinsics()
+    water = np.full((h, w), np.inf, dtype=np.float32)
+    eye = to_eye(camera.view(), particles)
+    draw_spheres(eye, radius, f, cx, cy, n, scene.astype(np.float32), water)
+    composite_water(image, water, f, smooth_px=water_smoothing(radius, f, eye))
     return image
+
+
+def water_smoothing(radius: float, f: float, eye: np.ndarray) -> float:
+    """The water's smoothing, pixels: twice a drawn particle's radius at the median depth.
+
+    Twice, so that neighbouring spheres' bumps are smoothed into one surface while a drop
+    (a few particles) stays a drop.
+    """
+    if len(eye) == 0:
+        return 0.0
+    return float(2.0 * f * radius / max(float(np.median(-eye[:, 2])), 1e-3))

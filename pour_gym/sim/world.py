@@ -32,6 +32,7 @@ from pour_gym.io.cache import cache_dir
 from pour_gym.io.stdio import redirect_stdout_fd
 from pour_gym.sim.camera import Camera, render
 from pour_gym.sim.census import Census, take_census
+from pour_gym.sim.raster import DRAWN_RADIUS
 from pour_gym.sim.spawn import block, cavity_lattice, fill_lattice
 
 FLUIDS = ("pbf", "bullet")
@@ -41,8 +42,6 @@ CUP_COLORS = ((0.85, 0.20, 0.20, 1.0), (0.92, 0.92, 0.88, 1.0), (0.55, 0.75, 0.5
 # by more than a particle's kernel.
 SDF_SPACING = 1e-3
 SDF_MARGIN = 0.012
-# Particles are drawn larger than their collision radius, so that they merge into water.
-DRAWN_RADIUS = 0.8
 
 
 def as_rotation(rotation) -> np.ndarray:

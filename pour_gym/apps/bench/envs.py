@@ -11,6 +11,7 @@ from tqdm import tqdm
 from pour_gym.agents.rollout import rollout
 from pour_gym.agents.scripted import ScriptedPourPolicy
 from pour_gym.envs import PANDA_POUR_V0, PARTICLE_DROP_V0, POUR_V0, TILT_POUR_V0, make
+from pour_gym.errors import InputError
 from pour_gym.report.tables import markdown_table
 
 
@@ -68,7 +69,12 @@ def _pour_realtime(kwargs: dict, episodes: int, seed: int = 0, env_id: str = POU
     return sum(e.steps for e in runs) * env.unwrapped.dt / sum(e.step_seconds for e in runs)
 
 
-def bench_envs(repeats: int = 3, steps: int = 600) -> dict:
+ENV_SECTIONS = ("pour", "vec", "rows", "sensors")
+
+
+def bench_envs(
+    repeats: int = 3, steps: int = 600, sections: tuple[str, ...] = ENV_SECTIONS
+) -> dict:
     """Speed of the environments at their defaults, side by side in one run.
 
     - ``pour_v0``: the scripted policy pouring from the red cup into the broad cup, episode
@@ -83,16 +89,26 @@ def bench_envs(repeats: int = 3, steps: int = 600) -> dict:
       first three alternate run by run, and ``ratios`` are medians of the ratios within
       each run's trio.
     - ``rows``: the one-step environments alone and vectorised by two (Gymnasium's).
+    - ``sensors``: ms per Pour-v0 step in each observation mode (:func:`bench_sensors`).
 
     Args:
         repeats: timed runs per case; the median is reported.
         steps: steps per timed run of the vector cases (600: several episodes, so that
             resets and long steps average out as they do in training).
+        sections: which of ``pour`` (``pour_v0`` and ``panda_pour_v0``), ``vec`` (``vec``
+            and ``ratios``), ``rows`` and ``sensors`` to run.
+
+    Raises:
+        InputError: an unknown section.
     """
     import functools
 
-    cases = 3 + 4 + 2 * 3
-    bar = tqdm(total=cases * repeats, desc="bench envs", file=sys.stderr)
+    unknown = sorted(set(sections) - set(ENV_SECTIONS))
+    if unknown:
+        raise InputError(f"unknown bench envs sections {unknown}; choose from {ENV_SECTIONS}")
+    counts = {"pour": 3, "vec": 4, "rows": 6, "sensors": len(SENSOR_CASES)}
+    bar = tqdm(total=sum(counts[c] for c in sections) * repeats, desc="bench envs", file=sys.stderr)
+    out: dict = {}
 
     def median(fn) -> float:
         runs = []
@@ -101,91 +117,163 @@ def bench_envs(repeats: int = 3, steps: int = 600) -> dict:
             bar.update()
         return float(statistics.median(runs))
 
-    # Pour-v0 and PandaPour-v0 alternate, run by run: the ratio is taken within each pair
-    # (this machine's speed drifts by 2x over minutes), and its median reported.
-    pairs = []
-    for r in range(repeats):
-        alone = _pour_realtime({}, 2, seed=100 * r)
-        bar.update()
-        held = _pour_realtime({}, 2, seed=100 * r, env_id=PANDA_POUR_V0)
-        bar.update()
-        pairs.append((alone, held))
-    realtime = float(statistics.median(a for a, _ in pairs))
-    panda = float(statistics.median(b for _, b in pairs))
-    panda_ratio = float(statistics.median(b / a for a, b in pairs))
-    realtime_1000 = median(lambda r: _pour_realtime({"source_particles": 1000}, 2, seed=100 * r))
-    pour = functools.partial(make, POUR_V0)
-    single = functools.partial(make, POUR_V0, num_threads=1)
-    # The cases a ratio is taken between alternate run by run, as above.
-    runs: dict[str, list[float]] = {"dummy_1": [], "one_thread": [], "subproc_2": []}
-    for r in range(repeats):
-        for name, factory, mode in (
-            ("dummy_1", pour, "dummy"),
-            ("one_thread", single, "dummy"),
-            ("subproc_2", pour, "subproc_2"),
-        ):
-            runs[name].append(_env_rate(factory, mode, steps, seed=r))
+    if "pour" in sections:
+        # Pour-v0 and PandaPour-v0 alternate, run by run: the ratio is taken within each
+        # pair (this machine's speed drifts by 2x over minutes), and its median reported.
+        pairs = []
+        for r in range(repeats):
+            alone = _pour_realtime({}, 2, seed=100 * r)
             bar.update()
-    vec = {name: float(statistics.median(v)) for name, v in runs.items()}
-    vec["subproc_4"] = median(lambda r: _env_rate(pour, "subproc_4", steps, seed=r))
-    ratio_one = statistics.median(
-        b / a for a, b in zip(runs["one_thread"], runs["subproc_2"], strict=True)
-    )
-    ratio_default = statistics.median(
-        b / a for a, b in zip(runs["dummy_1"], runs["subproc_2"], strict=True)
-    )
-    rows = []
-    for env_id in (PARTICLE_DROP_V0, TILT_POUR_V0):
-        make_one = functools.partial(make, env_id)
-        for mode in (None, "sync", "async"):
-            rate = median(lambda r, m=make_one, mode=mode: _env_rate(m, mode, 60, seed=r))
-            rows.append({"env": env_id, "mode": mode or "single", "steps_per_s": rate})
-    bar.close()
-    return {
-        "pour_v0": {
+            held = _pour_realtime({}, 2, seed=100 * r, env_id=PANDA_POUR_V0)
+            bar.update()
+            pairs.append((alone, held))
+        realtime = float(statistics.median(a for a, _ in pairs))
+        panda = float(statistics.median(b for _, b in pairs))
+        realtime_1000 = median(
+            lambda r: _pour_realtime({"source_particles": 1000}, 2, seed=100 * r)
+        )
+        out["pour_v0"] = {
             "realtime": realtime,
             "steps_per_s": realtime / 0.1,
             "realtime_1000": realtime_1000,
-        },
-        "panda_pour_v0": {
+        }
+        out["panda_pour_v0"] = {
             "realtime": panda,
             "steps_per_s": panda / 0.1,
-            "over_pour_v0": panda_ratio,
-        },
-        "vec": vec,
-        "ratios": {
-            "subproc_2_over_one_thread": float(ratio_one),
-            "subproc_2_over_default": float(ratio_default),
-        },
-        "rows": rows,
-    }
+            "over_pour_v0": float(statistics.median(b / a for a, b in pairs)),
+        }
+    if "vec" in sections:
+        pour = functools.partial(make, POUR_V0)
+        single = functools.partial(make, POUR_V0, num_threads=1)
+        # The cases a ratio is taken between alternate run by run, as above.
+        runs: dict[str, list[float]] = {"dummy_1": [], "one_thread": [], "subproc_2": []}
+        for r in range(repeats):
+            for name, factory, mode in (
+                ("dummy_1", pour, "dummy"),
+                ("one_thread", single, "dummy"),
+                ("subproc_2", pour, "subproc_2"),
+            ):
+                runs[name].append(_env_rate(factory, mode, steps, seed=r))
+                bar.update()
+        vec = {name: float(statistics.median(v)) for name, v in runs.items()}
+        vec["subproc_4"] = median(lambda r: _env_rate(pour, "subproc_4", steps, seed=r))
+        out["vec"] = vec
+        out["ratios"] = {
+            "subproc_2_over_one_thread": float(statistics.median(
+                b / a for a, b in zip(runs["one_thread"], runs["subproc_2"], strict=True)
+            )),
+            "subproc_2_over_default": float(statistics.median(
+                b / a for a, b in zip(runs["dummy_1"], runs["subproc_2"], strict=True)
+            )),
+        }  # fmt: skip
+    if "rows" in sections:
+        rows = []
+        for env_id in (PARTICLE_DROP_V0, TILT_POUR_V0):
+            make_one = functools.partial(make, env_id)
+            for mode in (None, "sync", "async"):
+                rate = median(lambda r, m=make_one, mode=mode: _env_rate(m, mode, 60, seed=r))
+                rows.append({"env": env_id, "mode": mode or "single", "steps_per_s": rate})
+        out["rows"] = rows
+    if "sensors" in sections:
+        out["sensors"] = bench_sensors(repeats, bar=bar)
+    bar.close()
+    return out
+
+
+SENSOR_CASES = ("features", "depth", "rgb", "points", ("features", "depth"))
+
+
+def bench_sensors(repeats: int = 3, steps: int = 300, bar: tqdm | None = None) -> dict:
+    """What each observation mode costs on a Pour-v0 step, one thread, side by side.
+
+    Pour-v0 on the red cup, ``num_threads=1`` (how RL workers run), random actions with
+    the same seeds in every mode: the episodes are the same (the sensors' randomness is a
+    stream of their own), so the difference is the observation. The modes alternate run
+    by run; ``over_features`` is the median over runs of a mode's ms per step over the
+    features mode's in the same run.
+
+    Args:
+        repeats: timed runs per mode.
+        steps: steps per timed run.
+        bar: a progress bar to advance (one tick per run), or None.
+
+    Returns:
+        ``{"rows": [{"obs_mode", "ms_per_step", "over_features"}], "steps", "repeats"}``.
+    """
+    import functools
+
+    ms: dict[str, list[float]] = {_mode_name(m): [] for m in SENSOR_CASES}
+    for r in range(repeats):
+        for mode in SENSOR_CASES:
+            factory = functools.partial(
+                make, POUR_V0, objects="red_cup", num_threads=1, obs_mode=mode
+            )
+            ms[_mode_name(mode)].append(1e3 / _env_rate(factory, None, steps, seed=r))
+            if bar is not None:
+                bar.update()
+    base = ms["features"]
+    rows = [
+        {
+            "obs_mode": name,
+            "ms_per_step": float(statistics.median(v)),
+            "over_features": float(statistics.median(a / b for a, b in zip(v, base, strict=True))),
+        }
+        for name, v in ms.items()
+    ]
+    return {"rows": rows, "steps": steps, "repeats": repeats}
+
+
+def _mode_name(mode) -> str:
+    return mode if isinstance(mode, str) else "+".join(mode)
+
+
+def sensors_table(result: dict) -> str:
+    """Markdown table of :func:`bench_sensors`."""
+    rows = [
+        [r["obs_mode"], f"{r['ms_per_step']:.2f}", f"{r['over_features']:.2f}x"]
+        for r in result["rows"]
+    ]
+    return markdown_table(
+        ["Pour-v0, one thread, obs_mode (84 x 84, 1024 points)", "ms per step (median)",
+         "over features"], rows, align="lrr",
+    )  # fmt: skip
 
 
 def envs_table(result: dict) -> str:
-    """Markdown tables of :func:`bench_envs`."""
-    p, v, q = result["pour_v0"], result["vec"], result["ratios"]
-    a = result["panda_pour_v0"]
-    realtime = [
-        ["defaults (fill T + 100)", f"{p['realtime']:.2f}"],
-        ["1000 particles", f"{p['realtime_1000']:.2f}"],
-        ["PandaPour-v0, the Panda holding the cup (defaults, the same episodes)",
-         f"{a['realtime']:.2f} ({a['over_pour_v0']:.2f}x Pour-v0)"],
-    ]  # fmt: skip
-    vector = [
-        ["DummyVecEnv, 1 env, default threads", f"{v['dummy_1']:.1f}"],
-        ["DummyVecEnv, 1 env, num_threads=1", f"{v['one_thread']:.1f}"],
-        ["SubprocVecEnv, 2 workers", f"{v['subproc_2']:.1f}"],
-        ["SubprocVecEnv, 4 workers", f"{v['subproc_4']:.1f}"],
-    ]
-    one_step = [[r["env"], r["mode"], f"{r['steps_per_s']:.1f}"] for r in result["rows"]]
-    return "\n".join([
-        markdown_table(["Pour-v0, scripted policy, red cup -> broad cup",
-                        "simulated s per wall s"], realtime),
-        "",
-        markdown_table(["Pour-v0, random actions, SB3 vector env", "env-steps/s"], vector),
-        "",
-        f"SubprocVecEnv(2) over one env on one thread: {q['subproc_2_over_one_thread']:.2f}x; "
-        f"over one env at its default threads: {q['subproc_2_over_default']:.2f}x",
-        "",
-        markdown_table(["environment", "mode", "steps/s (median)"], one_step, align="llr"),
-    ])  # fmt: skip
+    """Markdown tables of :func:`bench_envs` (the sections it ran)."""
+    parts = []
+    if "pour_v0" in result:
+        p, a = result["pour_v0"], result["panda_pour_v0"]
+        realtime = [
+            ["defaults (fill T + 100)", f"{p['realtime']:.2f}"],
+            ["1000 particles", f"{p['realtime_1000']:.2f}"],
+            ["PandaPour-v0, the Panda holding the cup (defaults, the same episodes)",
+             f"{a['realtime']:.2f} ({a['over_pour_v0']:.2f}x Pour-v0)"],
+        ]  # fmt: skip
+        parts += [markdown_table(["Pour-v0, scripted policy, red cup -> broad cup",
+                                  "simulated s per wall s"], realtime), ""]  # fmt: skip
+    if "vec" in result:
+        v, q = result["vec"], result["ratios"]
+        vector = [
+            ["DummyVecEnv, 1 env, default threads", f"{v['dummy_1']:.1f}"],
+            ["DummyVecEnv, 1 env, num_threads=1", f"{v['one_thread']:.1f}"],
+            ["SubprocVecEnv, 2 workers", f"{v['subproc_2']:.1f}"],
+            ["SubprocVecEnv, 4 workers", f"{v['subproc_4']:.1f}"],
+        ]
+        parts += [
+            markdown_table(["Pour-v0, random actions, SB3 vector env", "env-steps/s"], vector),
+            "",
+            f"SubprocVecEnv(2) over one env on one thread: "
+            f"{q['subproc_2_over_one_thread']:.2f}x; over one env at its default threads: "
+            f"{q['subproc_2_over_default']:.2f}x",
+            "",
+        ]
+    if "rows" in result:
+        one_step = [[r["env"], r["mode"], f"{r['steps_per_s']:.1f}"] for r in result["rows"]]
+        parts += [
+            markdown_table(["environment", "mode", "steps/s (median)"], one_step, align="llr"),
+            "",
+        ]
+    if "sensors" in result:
+        parts += [sensors_table(result["sensors"]), ""]
+    return "\n".join(parts).rstrip("\n")
