@@ -26,6 +26,15 @@ def test_unknown_object_is_a_one_line_error(cli):
     assert "Traceback" not in proc.stderr
 
 
+@pytest.mark.parametrize("command", ["train", "search"])
+def test_env_kwargs_that_are_not_a_json_object_are_named(cli, command):
+    for bad, words in (("{bad", "not JSON"), ("[1]", "a JSON object {...} is needed")):
+        proc = cli(command, "--env-kwargs", bad, check=False)
+        assert proc.returncode == 2
+        assert "argument --env-kwargs" in proc.stderr and words in proc.stderr
+        assert "Traceback" not in proc.stderr
+
+
 def test_scan_then_reconstruct_a_user_cloud(tmp_path, models, cli):
     cup = models["very_small_cup"]
     cloud = turntable_scan(cup.mesh, cup.labels, ScanConfig(views=12, width=120, height=90))

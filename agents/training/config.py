@@ -145,13 +145,24 @@ def config_parser(
         if isinstance(default, bool):
             p.add_argument(flag, action="store_true", help=f.metadata["doc"])
             continue
-        kind = json.loads if isinstance(default, dict) else type(default)
+        kind = json_object if isinstance(default, dict) else type(default)
         choices = list(ALGORITHMS) if f.name == "algo" else None
         choices = list(OBS_MODES) if f.name == "obs_mode" else choices
         p.add_argument(flag, type=kind, default=default, choices=choices, help=f.metadata["doc"])
     if parser is None or "json" not in {a.dest for a in p._actions}:
         p.add_argument("--json", action="store_true", help="print the evaluation as JSON")
     return p
+
+
+def json_object(text: str) -> dict:
+    """An argument that is a JSON object (argparse names the option when this raises)."""
+    try:
+        value = json.loads(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(f"not JSON ({exc}): {text!r}") from None
+    if not isinstance(value, dict):
+        raise argparse.ArgumentTypeError(f"a JSON object {{...}} is needed, not {text!r}")
+    return value
 
 
 def config_from_args(args: argparse.Namespace) -> TrainConfig:

@@ -19,17 +19,6 @@ from pour_gym.errors import InputError, SimulationError
 from pour_gym.io.stdio import redirect_stdout_fd
 
 
-def _json_object(text: str) -> dict:
-    """An argument that is a JSON object (argparse names the option when this raises)."""
-    try:
-        value = json.loads(text)
-    except ValueError as exc:
-        raise argparse.ArgumentTypeError(f"not JSON ({exc}): {text!r}") from None
-    if not isinstance(value, dict):
-        raise argparse.ArgumentTypeError(f"a JSON object {{...}} is needed, not {text!r}")
-    return value
-
-
 def add_address(p: argparse.ArgumentParser, what: str) -> None:
     """The ``--address`` option of the commands that can run on Ray."""
     p.add_argument(
@@ -42,7 +31,7 @@ def add_address(p: argparse.ArgumentParser, what: str) -> None:
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``pour-gym``."""
     from pour_gym import __version__
-    from pour_gym.agents.training.config import config_parser
+    from pour_gym.agents.training.config import config_parser, json_object
 
     parser = argparse.ArgumentParser(
         prog="pour-gym",
@@ -273,7 +262,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--sigma", type=float, default=0.2, help="CMA-ES's first step in the unit cube")
     p.add_argument(
         "--env-kwargs",
-        type=_json_object,
+        type=json_object,
         default={},
         help="JSON of Pour-v0 arguments, e.g. reward weights: '{\"progress_weight\": 20}'",
     )
