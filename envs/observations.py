@@ -12,6 +12,11 @@ SENSOR_MODES = ("depth", "rgb", "points")
 OBS_MODES = VECTOR_MODES + SENSOR_MODES
 
 
+def vector_mode(modes: tuple[str, ...]) -> str | None:
+    """The vector mode among parsed modes (``"features"`` or ``"state"``), or None."""
+    return next((m for m in modes if m in VECTOR_MODES), None)
+
+
 def parse_obs_mode(obs_mode) -> tuple[str, ...]:
     """The modes of an ``obs_mode``: one name, or a list or tuple of names (a ``Dict``).
 

@@ -7,7 +7,7 @@ from gymnasium import spaces
 from gymnasium.utils import EzPickle
 
 from pour_gym.envs.base import PourGymEnv
-from pour_gym.envs.observations import VECTOR_MODES, parse_obs_mode
+from pour_gym.envs.observations import parse_obs_mode, vector_mode
 from pour_gym.envs.task import DROP
 from pour_gym.features import fill_fraction, relative_distance_height
 from pour_gym.fluid.pbf import PBFConfig
@@ -145,8 +145,8 @@ class ParticleDropEnv(PourGymEnv):
         self.fill_range = (float(fill_range[0]), float(fill_range[1]))
         self.dt = float(drop_time)
         self._setup_observations(obs_mode)
-        vector = [m for m in self.obs_modes if m in VECTOR_MODES]
-        self.obs_names = () if not vector else OBS_NAMES[vector[0]]
+        vector = vector_mode(self.obs_modes)
+        self.obs_names = OBS_NAMES[vector] if vector else ()
         self.action_space = spaces.Box(-1.0, 1.0, (1,), np.float32)
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):

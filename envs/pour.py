@@ -9,7 +9,7 @@ from scipy.spatial.transform import Rotation
 
 from pour_gym.envs.base import PourGymEnv
 from pour_gym.envs.holders import make_holder
-from pour_gym.envs.observations import VECTOR_MODES, parse_obs_mode
+from pour_gym.envs.observations import VECTOR_MODES, parse_obs_mode, vector_mode
 from pour_gym.envs.task import POUR
 from pour_gym.features import ContainerGeometry, fluid_features, relative_distance_height
 from pour_gym.fluid.pbf import PBFConfig
@@ -366,10 +366,10 @@ class PourEnv(PourGymEnv):
         self.pour_threshold = int(pour_threshold)
         self.pour_steps = int(pour_steps)
         self.dt = 0.1
-        vector = [m for m in modes if m in VECTOR_MODES]
+        vector = vector_mode(modes)
         self.obs_names = ()
         if vector:
-            names = FEATURE_NAMES if vector[0] == "features" else STATE_NAMES
+            names = FEATURE_NAMES if vector == "features" else STATE_NAMES
             self.obs_names = names + self.holder.obs_names
         hide = (hide,) if isinstance(hide, str) else tuple(hide)
         unknown = sorted(set(hide) - set(self.obs_names))

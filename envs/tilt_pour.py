@@ -10,7 +10,7 @@ from gymnasium.utils import EzPickle
 from scipy.spatial.transform import Rotation
 
 from pour_gym.envs.base import PourGymEnv
-from pour_gym.envs.observations import VECTOR_MODES, parse_obs_mode
+from pour_gym.envs.observations import parse_obs_mode, vector_mode
 from pour_gym.envs.task import TILT
 from pour_gym.features import cavity_points, fluid_features, mouth_volume
 from pour_gym.fluid.pbf import PBFConfig
@@ -54,8 +54,9 @@ class TiltPourEnv(PourGymEnv):
     ``Box(-4, 4, (5,), float32)``: the tilt angle (rad), the fill fraction and the
     container's bounding-box size (in 10 cm). The sensor modes (``"depth"``, ``"rgb"``,
     ``"points"``, :mod:`pour_gym.sim.sensors`) see the tilted container from a head camera
-    beside it, with its fluid as the label's quasi-static limit has it: the fill at rest,
-    rotated with the container (the same fluid as f4's). A tuple of modes gives a ``Dict``.
+    looking into its mouth, with its fluid as the label's quasi-static limit has it: the
+    fill at rest, rotated with the container (the same fluid as f4's). A tuple of modes
+    gives a ``Dict``.
 
     ## Rewards
     ``correct`` = 1 for a right prediction; ``spill`` = -1 for predicting no pour when it
@@ -159,8 +160,8 @@ class TiltPourEnv(PourGymEnv):
         self.tilt_range = (float(tilt_range[0]), float(tilt_range[1]))
         self.dt = TILT_TIME + HOLD_TIME
         self._setup_observations(obs_mode)
-        vector = [m for m in self.obs_modes if m in VECTOR_MODES]
-        self.obs_names = OBS_NAMES[vector[0]] if vector else ()
+        vector = vector_mode(self.obs_modes)
+        self.obs_names = OBS_NAMES[vector] if vector else ()
         self.action_space = spaces.Box(-1.0, 1.0, (1,), np.float32)
         # Per container, computed once: the rest lattice (it never enters the world in the
         # hydrostatic mode) and the cavity's voxel centres.
