@@ -2,10 +2,11 @@
 
 The sensors (:mod:`pour_gym.sim.sensors`) draw every observation with it, and the fluid of
 every picture (:func:`pour_gym.sim.camera.render`, the README's GIFs) is drawn by
-:func:`draw_spheres` and :func:`composite_water`. Pybullet's TinyRenderer draws a 25k-face
-cup at 84 x 84 in about 10 ms, more than a whole Pour-v0 step; these loops draw the same in
-well under a millisecond, because they visit each triangle once and only the pixels of its
-bounding box, and the meshes stay in the container's frame between frames.
+:func:`draw_spheres` and :func:`composite_water`. Pybullet's TinyRenderer costs more per
+84 x 84 frame of two scanned cups than a whole Pour-v0 step (docs/sensors.md has the
+figures); these loops visit each triangle once and only the pixels of its bounding box,
+and the sensors draw copies of the meshes merged to about a pixel
+(:func:`cluster_vertices`).
 
 Conventions (OpenGL's, as pybullet's view matrices): eye coordinates look along -z, with y
 up; a pixel (row, column) has its centre at (column + 0.5, row + 0.5); depth is the distance
