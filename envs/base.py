@@ -121,6 +121,7 @@ class PourGymEnv(gym.Env, EzPickle):
         self._sensor_rng: np.random.Generator | None = None
         self._meshes: dict[str, tuple[np.ndarray, np.ndarray]] = {}
         self.obs_modes: tuple[str, ...] = ()
+        self.obs_spaces: dict[str, spaces.Box] = {}
         if steps_fluid and fluid == "pbf":
             # The fluid kernel's compile starts now, in helper processes, if it is not
             # cached: it overlaps loading the containers and the first reset.
@@ -150,6 +151,8 @@ class PourGymEnv(gym.Env, EzPickle):
             m: self._vector_space(m) if m in VECTOR_MODES else self.sensor_config.space(m)
             for m in self.obs_modes
         }
+        # Each mode's space, made once: a vector observation is clipped to it every step.
+        self.obs_spaces: dict[str, spaces.Box] = parts
         if len(parts) == 1:
             self.observation_space = parts[self.obs_modes[0]]
         else:

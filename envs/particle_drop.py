@@ -227,7 +227,7 @@ class ParticleDropEnv(PourGymEnv):
         else:
             size = np.ptp(self.container.asset.mesh.bounds, axis=0)
             obs = np.array([*(self.spawn / STATE_SCALE), *(size / STATE_SCALE), self.fill])
-        space = self._vector_space(mode)
+        space = self.obs_spaces[mode]
         return np.clip(obs, space.low, space.high).astype(np.float32)
 
     def _info(self, terms: dict | None = None, **outcome) -> dict:

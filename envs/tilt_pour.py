@@ -266,7 +266,7 @@ class TiltPourEnv(PourGymEnv):
         else:
             size = np.ptp(self.episode_asset.mesh.bounds, axis=0) / 0.1
             obs = np.array([np.radians(self.tilt), self.fill, *size])
-        space = self._vector_space(mode)
+        space = self.obs_spaces[mode]
         return np.clip(obs, space.low, space.high).astype(np.float32)
 
     def _info(self, terms: dict | None = None, **outcome) -> dict:

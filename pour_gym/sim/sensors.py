@@ -193,6 +193,7 @@ class Sensor:
         # Meshes are drawn merged on a grid of a pixel where the camera looks.
         self.cell = camera.distance / f
         self._table: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+        self._light = self._view[:3, :3] @ LIGHT  # towards the light, eye coordinates
 
     def mesh(self, mesh) -> tuple[np.ndarray, np.ndarray]:
         """A container's mesh (trimesh) as this sensor draws it: merged to about a pixel."""
@@ -225,7 +226,7 @@ class Sensor:
         h, w = cam.height, cam.width
         f, cx, cy = cam.intrinsics()
         near, far = cam.near, cam.far
-        light = self._view[:3, :3] @ LIGHT
+        light = self._light
         if table_color is None:
             depth = np.full((h, w), np.inf, dtype=np.float32)
             seg = np.zeros((h, w), dtype=np.uint8)
