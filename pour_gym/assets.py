@@ -363,8 +363,9 @@ def check_open(asset: LabelledAsset, spec: str | Path | None = None) -> Labelled
 
 
 # Bumped when labelling a file gives another result for the same bytes (the cache of
-# labelled user meshes is keyed by both). 2: STL corners joined into shared vertices.
-LABELLING_VERSION = 2
+# labelled user meshes is keyed by both). 2: STL corners joined into shared vertices. 3: the
+# warped rim fitted to the lip (pour_gym.warp.lip).
+LABELLING_VERSION = 3
 
 # Containers by split, for environments: the thesis trained on the red cup alone and
 # tested on its other eight objects.

@@ -5,6 +5,7 @@
   generative classifier.
 - :mod:`pour_gym.warp.frame`: upright detection and the canonical, normalised frame.
 - :mod:`pour_gym.warp.transfer`: the thesis's transfer and the better one.
+- :mod:`pour_gym.warp.lip`: the warped rim fitted to the lip's geometry.
 """
 
 from pour_gym.warp.classifiers import GaussianGenerative, LogisticRegression

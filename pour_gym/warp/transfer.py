@@ -32,6 +32,7 @@ from scipy.spatial import cKDTree
 from pour_gym.parts import Part
 from pour_gym.warp.classifiers import GaussianGenerative, LogisticRegression
 from pour_gym.warp.frame import ContainerFrame, canonical_frame
+from pour_gym.warp.lip import fit_rim
 from pour_gym.warp.local_features import local_features
 
 Method = Literal["thesis", "best"]
@@ -127,6 +128,7 @@ def transfer_best(
     smoothing_rounds: int = 2,
     source_upright: bool = True,
     target_upright: bool = False,
+    fit_lip: bool = True,
 ) -> Transfer:
     """Label transfer in the normalised canonical frames (the ``"best"`` method).
 
@@ -138,6 +140,8 @@ def transfer_best(
         smoothing_rounds: rounds of majority vote over the target's mesh graph.
         source_upright: the source already stands upright on +z.
         target_upright: the target already stands upright on +z (skips the search).
+        fit_lip: fit the warped rim to the target's lip (:func:`pour_gym.warp.lip.fit_rim`);
+            False gives the warp's band as it is.
 
     Returns:
         The target's labels and frame.
@@ -168,12 +172,11 @@ def transfer_best(
         labels[(radial > 1.2) & (tp[:, 2] < 0.95)] = Part.HANDLE
     if smoothing_rounds:
         labels = _smooth_labels(target, labels, smoothing_rounds)
-    return Transfer(
-        labels=labels,
-        method="best",
-        frame=tf,
-        info={"target_handle_found": tf.handle, "height": tf.height, "rim_radius": tf.rim_radius},
-    )
+    info = {"target_handle_found": tf.handle, "height": tf.height, "rim_radius": tf.rim_radius}
+    if fit_lip:
+        labels, lip = fit_rim(trimesh.Trimesh(tc, target.faces, process=False), labels)
+        info["lip"] = lip.to_dict()
+    return Transfer(labels=labels, method="best", frame=tf, info=info)
 
 
 @dataclass
