@@ -255,7 +255,8 @@ def family_warping(family: str) -> dict:
         family: a procedural family name (``procedural:test``).
 
     Returns:
-        ``{"family", "method", "source", "members": [{"name", "spec", "iou_<part>"...}],
+        ``{"family", "method", "source", "members": [{"name", "spec", "iou_<part>"...,
+        "lip_depth" (m, None where the warp's rim band was kept), "lip_reason"}],
         "refused": [{"name", "reason"}], "mean": {"iou_<part>": mean}, "buckets":
         by_bucket(...)}``.
     """
@@ -276,6 +277,8 @@ def family_warping(family: str) -> dict:
             continue
         row = {"name": name, "spec": member_spec(name).to_dict()}
         row.update({f"iou_{part}": meta["iou"][part] for part in PARTS})
+        lip = meta["source"].get("transfer", {}).get("lip", {})
+        row["lip_depth"], row["lip_reason"] = lip.get("depth"), lip.get("reason", "")
         members.append(row)
     values = tuple(f"iou_{part}" for part in PARTS)
     return {
@@ -304,6 +307,11 @@ def family_warping_report(doc: dict) -> str:
         "",
         f"Mean over {m['members']} members: {means}.",
     ]
+    kept = [r for r in doc["members"] if r.get("lip_depth") is None]
+    lines += ["", f"The rim fitted to the lip (`pour_gym.warp.lip`) on "
+              f"{len(doc['members']) - len(kept)} of {len(doc['members'])} members; the "
+              f"warp's band kept on {len(kept)}" + (":" if kept else ".")]  # fmt: skip
+    lines += [f"- `{r['name']}`: {r['lip_reason']}" for r in kept]
     if doc["refused"]:
         lines += ["", f"Refused ({len(doc['refused'])}):", ""]
         lines += [f"- `{r['name']}`: {r['reason']}" for r in doc["refused"]]

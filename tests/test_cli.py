@@ -111,3 +111,11 @@ def test_evaluate_runs_a_searched_policy_and_rejects_other_json(tmp_path, cli):
     bad.write_text("{}")
     proc = cli("evaluate", str(bad), "--objects", "red_cup", check=False)
     assert proc.returncode == 2 and "search.json" in proc.stderr
+
+
+def test_label_says_how_the_rim_was_drawn(tmp_path, cli):
+    text = cli("label", "procedural:train#8", "--out", str(tmp_path / "a")).stdout
+    assert "rim fitted to the lip, 4.5 mm deep" in text  # a rolled lip on a 3.6 mm wall
+    assert "rim 1.000" in text
+    text = cli("label", "ycb_mug", "--out", str(tmp_path / "b")).stdout
+    assert "rim as warped (the lip could not be told: the wall does not settle" in text

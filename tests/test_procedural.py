@@ -199,8 +199,11 @@ def test_warping_over_a_family_reports_iou_per_bucket():
     for row in doc["members"]:
         assert 0.0 <= row["iou_container"] <= 1.0 and 0.0 <= row["iou_rim"] <= 1.0
         assert (row["iou_handle"] is not None) == row["spec"]["handle"]
+        # The rim is fitted to each member's lip: its depth is a few millimetres.
+        assert 0.0 <= row["lip_depth"] < 0.012 and row["lip_reason"] == ""
     text = family_warping_report(doc)
     assert "### by profile" in text and "### by wall" in text
+    assert "fitted to the lip (`pour_gym.warp.lip`) on 2 of 2 members" in text
 
 
 def test_wilson_interval_matches_the_textbook():

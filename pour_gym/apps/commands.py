@@ -280,6 +280,13 @@ def cmd_label(args: argparse.Namespace) -> Output:
             f"  height {g.height * 100:.2f} cm, rim radius {g.rim_radius * 100:.2f} cm, "
             f"cavity {g.cavity_volume * 1e6:.0f} ml (convex hull {g.container_volume * 1e6:.0f} ml)"
         )
+        lip = asset.meta["source"].get("transfer", {}).get("lip")
+        if lip is not None:
+            lines.append(
+                f"  rim fitted to the lip, {lip['depth'] * 1e3:.1f} mm deep"
+                if lip["depth"] is not None
+                else f"  rim as warped (the lip could not be told: {lip['reason']})"
+            )
         if "iou" in asset.meta:
             iou = ", ".join(f"{k} {v:.3f}" for k, v in asset.meta["iou"].items() if v is not None)
             lines.append(f"  IoU against ground truth: {iou}")

@@ -152,7 +152,13 @@ def lip_depth(mesh: trimesh.Trimesh) -> LipFit:
         # Where the ray misses the wall (NaN) the slope is infinite: a lip's, not a wall's.
         slope = np.full(len(w), np.inf)
         slope[h:-h] = np.abs(w[2 * h :] - w[: -2 * h]) / (2 * h * DEPTH_STEP)
-        changing = np.flatnonzero(lip & ~(slope <= SLOPE))
+        changing = ~(slope <= SLOPE)
+        if np.any(changing[~lip][:-h]):
+            # Still changing below the deepest lip: the wall this ray sees does not settle
+            # where it was measured (a reconstruction's wall thickens over centimetres).
+            ends.append(MEASURED_TO)
+            continue
+        changing = np.flatnonzero(lip & changing)
         ends.append(float(depths[changing[-1]]) if len(changing) else 0.0)
     if len(ends) < RAYS // 2:
         return LipFit(None, len(ends), f"the wall was measured on {len(ends)} of {RAYS} rays")
