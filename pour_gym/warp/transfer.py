@@ -16,7 +16,8 @@ upright, rim axis at the origin, handle along +x) and normalised rim to rim and 
 base; the forward correspondence is taken there, combined with the backward one (each source
 vertex votes for its nearest target vertex, so a thin source rim still reaches every target
 vertex of a broad rim band and one source vertex does not paint many target vertices),
-and the labels are smoothed over the target's mesh graph by a few rounds of majority vote.
+and the labels are smoothed over the target's mesh graph by a few rounds of majority vote;
+last, the rim is fitted to the target's own lip (:mod:`pour_gym.warp.lip`).
 """
 
 from __future__ import annotations
