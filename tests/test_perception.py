@@ -115,23 +115,33 @@ def test_a_point_cloud_file_is_a_container(tmp_path, monkeypatch):
 
 @pytest.mark.slow
 def test_an_env_refuses_a_container_it_cannot_perceive_when_it_is_made(tmp_path, monkeypatch):
-    """procedural:test#36 closes with both kernels from both looks: gym.make says so,
-    naming it, instead of a reset raising in the middle of a training run; the second time
-    at once."""
+    """A wide bowl 4.5 cm high with 1.5 mm walls (procedural:test#36 made shallower and
+    thinner) closes with both kernels from both looks: gym.make says so, naming it, instead
+    of a reset raising in the middle of a training run; the second time at once."""
+    import dataclasses
+
     import gymnasium as gym
 
+    from pour_gym.objects.procedural import build_spec, member_spec
+
+    spec = dataclasses.replace(
+        member_spec("procedural:test#36"), name="thin_bowl", wall=0.0015, height=0.045
+    )
+    path = tmp_path / "thin_bowl.obj"
+    build_spec(spec).mesh.export(path)
     monkeypatch.setenv("POUR_GYM_CACHE", str(tmp_path))
-    with pytest.raises(PerceptionError, match=r"procedural:test#36.*closed.*5/30 deg and 30/60"):
-        gym.make("PourGym/Pour-v0", objects="red_cup,procedural:test#36", perception="scan")
+    closed = r"thin_bowl.*closed.*5/30 deg and 30/60"
+    with pytest.raises(PerceptionError, match=closed):
+        gym.make("PourGym/Pour-v0", objects=f"red_cup,{path}", perception="scan")
     # The refusal is cached: asked again, it is refused with the same words, unscanned.
-    assert len(list((tmp_path / "assets").glob("procedural_test_36_scan0_*.refused.json"))) == 1
+    assert len(list((tmp_path / "assets").glob("thin_bowl_scan0_*.refused.json"))) == 1
 
     def scan_again(*args, **kwargs):
         raise AssertionError("a cached refusal was scanned again")
 
     monkeypatch.setattr("pour_gym.perception.perceive", scan_again)
-    with pytest.raises(PerceptionError, match=r"procedural:test#36.*closed.*5/30 deg and 30/60"):
-        gym.make("PourGym/Pour-v0", objects="procedural:test#36", perception="scan")
+    with pytest.raises(PerceptionError, match=closed):
+        gym.make("PourGym/Pour-v0", objects=str(path), perception="scan")
 
 
 @pytest.mark.slow
