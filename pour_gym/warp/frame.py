@@ -84,8 +84,7 @@ class ContainerFrame:
         return np.interp(z, self.profile[:, 0], self.profile[:, 1])
 
     def _top(self, points: np.ndarray) -> np.ndarray:
-        az = np.arctan2(points[:, 1], points[:, 0])
-        return np.interp(az, self.rim_top[:, 0], self.rim_top[:, 1], period=2 * np.pi)
+        return top_at(points, self.rim_top)
 
 
 def _rotation_to_z(direction: np.ndarray) -> np.ndarray:
@@ -246,6 +245,20 @@ def rim_heights(points: np.ndarray, wedges: int = 36) -> np.ndarray:
     top = (np.roll(top, 1) + top + np.roll(top, -1)) / 3.0
     centres = -np.pi + (idx + 0.5) * 2 * np.pi / wedges
     return np.column_stack([centres, top])
+
+
+def top_at(points: np.ndarray, rim_top: np.ndarray) -> np.ndarray:
+    """Height of the rim's top at each point's azimuth, in m.
+
+    Args:
+        points: (N, 3) canonical-frame positions.
+        rim_top: (W, 2) azimuth and top height per wedge, as :func:`rim_heights` gives.
+
+    Returns:
+        (N,) heights, interpolated between the wedges' centres around the circle.
+    """
+    az = np.arctan2(points[:, 1], points[:, 0])
+    return np.interp(az, rim_top[:, 0], rim_top[:, 1], period=2 * np.pi)
 
 
 def canonical_frame(mesh: trimesh.Trimesh, upright: bool = False) -> ContainerFrame:

@@ -30,7 +30,7 @@ import numpy as np
 import trimesh
 
 from pour_gym.parts import Part
-from pour_gym.warp.frame import rim_heights
+from pour_gym.warp.frame import rim_heights, top_at
 
 # Depths below the top at which the wall's width is measured, every DEPTH_STEP, in m.
 DEPTH_STEP = 1e-4
@@ -174,12 +174,16 @@ def lip_depth(mesh: trimesh.Trimesh) -> LipFit:
     return LipFit(depth, len(ends))
 
 
-def fit_rim(mesh: trimesh.Trimesh, labels: np.ndarray) -> tuple[np.ndarray, LipFit]:
+def fit_rim(
+    mesh: trimesh.Trimesh, labels: np.ndarray, rim_top: np.ndarray | None = None
+) -> tuple[np.ndarray, LipFit]:
     """The rim of warped labels made the lip: every vertex down to the lip's lower end.
 
     Args:
         mesh: the labelled container, upright, its opening's axis on x = y = 0, in m.
         labels: (V,) parts from the warp.
+        rim_top: the rim's top per azimuth wedge, as :func:`~pour_gym.warp.frame.rim_heights`
+            gives for the mesh's vertices (the canonical frame has it); None: computed here.
 
     Returns:
         The labels with the rim fitted to the lip (the input's, unchanged, when the lip
@@ -189,8 +193,7 @@ def fit_rim(mesh: trimesh.Trimesh, labels: np.ndarray) -> tuple[np.ndarray, LipF
     if fit.depth is None:
         return labels, fit
     v = np.asarray(mesh.vertices, dtype=float)
-    tops = rim_heights(v)
-    top = np.interp(np.arctan2(v[:, 1], v[:, 0]), tops[:, 0], tops[:, 1], period=2.0 * np.pi)
+    top = top_at(v, rim_heights(v) if rim_top is None else rim_top)
     lip = (v[:, 2] >= top - fit.depth - MARGIN) & (labels != Part.HANDLE)
     out = labels.copy()
     # What the warp called rim below the lip is wall: inside or outside by its normal.

@@ -175,7 +175,8 @@ def transfer_best(
         labels = _smooth_labels(target, labels, smoothing_rounds)
     info = {"target_handle_found": tf.handle, "height": tf.height, "rim_radius": tf.rim_radius}
     if fit_lip:
-        labels, lip = fit_rim(trimesh.Trimesh(tc, target.faces, process=False), labels)
+        placed = trimesh.Trimesh(tc, target.faces, process=False)
+        labels, lip = fit_rim(placed, labels, rim_top=tf.rim_top)
         info["lip"] = lip.to_dict()
     return Transfer(labels=labels, method="best", frame=tf, info=info)
 
