@@ -3,6 +3,7 @@
 All at the default parameters (4 over-relaxed iterations, substeps of at most 1/240 s).
 """
 
+import json
 import os
 import subprocess
 import sys
@@ -197,6 +198,68 @@ def test_parallel_loops_run_on_tbb_after_open3d_was_loaded_first():
     done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)
     assert done.returncode == 0, done.stderr[-2000:]
     assert done.stdout.split() == ["1000.0", "tbb"]
+
+
+FORK_SCRIPT = """
+import json, multiprocessing, warnings
+import numba, numpy as np
+from pour_gym.fluid import PBFConfig, PBFluid
+from pour_gym.mesh.gaussian_field import fit_gaussian_field
+
+def run(start):
+    fluid = PBFluid(start, PBFConfig(), num_threads=2)
+    fluid.wait_for_kernel()
+    for _ in range(5):
+        fluid.step(1 / 60)
+    return fluid
+
+def child(start, field, queue):
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        fluid = run(start)
+        values = field(start)
+    queue.put((fluid.x, fluid.build, values, [str(w.message) for w in caught]))
+
+if __name__ == "__main__":
+    g = np.arange(6) * 0.005
+    start = np.stack(np.meshgrid(g, g, g), -1).reshape(-1, 3) + [0.0, 0.0, 0.01]
+    parent = run(start)
+    field = fit_gaussian_field(start, sigma=0.01)
+    values = field(start)
+    context = multiprocessing.get_context("fork")
+    queue = context.Queue()
+    worker = context.Process(target=child, args=(start, field, queue))
+    worker.start()
+    x, build, child_values, caught = queue.get(timeout=300)
+    worker.join(timeout=60)
+    print(json.dumps({
+        "layer": numba.threading_layer(), "exitcode": worker.exitcode, "build": build,
+        "same_particles": bool(np.array_equal(x, parent.x)),
+        "same_field": bool(np.array_equal(values, child_values)), "warnings": caught,
+    }))
+"""
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="fork is Linux's default")
+def test_a_child_forked_after_openmp_runs_on_one_thread(tmp_path):
+    """GNU OpenMP (numba's layer where the tbb wheel is missing, or by choice) kills a
+    forked child at its first parallel loop if the parent used it: such a child runs the
+    one-thread builds of the fluid and of the Gaussian field instead, the same numbers,
+    after a warning that names the fix."""
+    script = tmp_path / "fork.py"
+    script.write_text(FORK_SCRIPT)
+    env = {**os.environ, "NUMBA_THREADING_LAYER": "omp"}
+    done = subprocess.run(
+        [sys.executable, str(script)], capture_output=True, text=True, env=env, timeout=900
+    )
+    assert done.returncode == 0, done.stderr[-2000:]
+    result = json.loads(done.stdout.strip().splitlines()[-1])
+    assert result["layer"] == "omp"
+    assert result["exitcode"] == 0
+    assert result["build"] == "serial"
+    assert result["same_particles"] and result["same_field"]
+    assert len(result["warnings"]) == 2, result["warnings"]
+    assert all("forkserver" in m for m in result["warnings"])
 
 
 def test_same_start_same_particles_bit_for_bit(cup_sdf):

@@ -68,3 +68,34 @@ def test_fluid_threads_default_to_one_in_a_worker():
 
     with get_context("spawn").Pool(1) as pool:
         assert pool.apply(functools.partial(default_threads)) == 1
+
+
+@pytest.mark.slow
+def test_workers_compute_what_one_env_computes_bit_for_bit():
+    """The same seeds and actions give the same observations and rewards in SB3's worker
+    processes as in one env of this process (what ``pour-gym bench envs`` relies on to
+    compare one env with two workers on equal work)."""
+    import gymnasium as gym
+
+    steps = 30
+    rng = np.random.default_rng(0)
+    actions = rng.uniform(-1.0, 1.0, size=(steps, 2, 4)).astype(np.float32)
+    venv = SubprocVecEnv([_make, _make], start_method="forkserver")
+    venv.seed(7)
+    vec_obs = [venv.reset()]
+    vec_rewards = []
+    for k in range(steps):
+        obs, rewards, _dones, _infos = venv.step(actions[k])
+        vec_obs.append(obs)
+        vec_rewards.append(rewards)
+    venv.close()
+    env = gym.make("PourGym/Pour-v0", num_threads=1, **SMALL)
+    for i in range(2):
+        obs, _ = env.reset(seed=7 + i)
+        assert np.array_equal(obs, vec_obs[0][i])
+        for k in range(steps):
+            obs, reward, terminated, truncated, _ = env.step(actions[k, i])
+            assert not (terminated or truncated)  # 30 steps end no episode here
+            assert np.array_equal(obs, vec_obs[k + 1][i]), f"worker {i}, step {k}"
+            assert reward == vec_rewards[k][i]
+    env.close()

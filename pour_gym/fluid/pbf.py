@@ -27,6 +27,7 @@ import inspect
 import multiprocessing
 import os
 import types
+import warnings
 from dataclasses import asdict, dataclass
 
 import numba as nb
@@ -35,6 +36,7 @@ import numpy as np
 # As a module, not through the package (whose __init__ imports this module).
 import pour_gym.fluid.precompile as precompile
 from pour_gym.fluid.sdf import FASTMATH, NO_REFCOUNT, SignedDistanceField, trilinear
+from pour_gym.io.numba_threads import FORK_WARNING, threads_usable, twin
 
 GRAVITY = np.array([0.0, 0.0, -9.81])
 # Water poured from a table-top cup never moves this fast; a particle that does has diverged.
@@ -948,24 +950,6 @@ def _advance(
     return n_sub
 
 
-def _twin(func: types.FunctionType, suffix: str, namespace: dict | None = None):
-    """A copy of a function under another name (numba caches compilations by name).
-
-    Args:
-        func: the function.
-        suffix: appended to its name.
-        namespace: the globals it resolves names in (default: its module's).
-    """
-    twin = types.FunctionType(
-        func.__code__, func.__globals__ if namespace is None else namespace,
-        func.__name__ + suffix, func.__defaults__,
-    )  # fmt: skip
-    twin.__qualname__ = func.__qualname__ + suffix
-    twin.__module__ = func.__module__
-    twin.__doc__ = func.__doc__
-    return twin
-
-
 def _builds(passes: tuple, driver: types.FunctionType) -> dict:
     """The driver compiled twice: calling serial passes, and calling parallel builds.
 
@@ -979,13 +963,13 @@ def _builds(passes: tuple, driver: types.FunctionType) -> dict:
     serial["_pass_neighbours"] = nb.njit(**fast, **NO_REFCOUNT)(_pass_neighbour_pairs)
     for f in passes:
         if f is _pass_neighbours:  # the serial build has its own (above)
-            parallel[f.__name__] = nb.njit(**fast, parallel=True)(_twin(f, "_parallel", parallel))
+            parallel[f.__name__] = nb.njit(**fast, parallel=True)(twin(f, "_parallel", parallel))
             continue
         serial[f.__name__] = nb.njit(**fast, **NO_REFCOUNT)(f)
-        parallel[f.__name__] = nb.njit(**fast, parallel=True)(_twin(f, "_parallel", parallel))
+        parallel[f.__name__] = nb.njit(**fast, parallel=True)(twin(f, "_parallel", parallel))
     return {
-        False: nb.njit(**fast, **NO_REFCOUNT)(_twin(driver, "_serial", serial)),
-        True: nb.njit(**fast)(_twin(driver, "_parallel", parallel)),
+        False: nb.njit(**fast, **NO_REFCOUNT)(twin(driver, "_serial", serial)),
+        True: nb.njit(**fast)(twin(driver, "_parallel", parallel)),
     }
 
 
@@ -1108,9 +1092,11 @@ class PBFluid:
         if num_threads is not None and int(num_threads) < 1:
             raise ValueError(f"num_threads must be at least 1 (or None), not {num_threads}")
         self.num_threads = default_threads() if num_threads is None else int(num_threads)
+        self._warned_fork = False
         self.x = np.empty((0, 3))
         self.v = np.empty((0, 3))
-        self._allocate(np.ascontiguousarray(positions, dtype=np.float64).reshape(-1, 3), None)
+        # A copy: the fluid moves its particles in place, and the caller's array is theirs.
+        self._allocate(np.array(positions, dtype=np.float64).reshape(-1, 3), None)
         if self.count:
             self._compile_soon()
         self.colliders: list[Collider] = []
@@ -1240,7 +1226,24 @@ class PBFluid:
 
     def _compile_soon(self) -> None:
         """Start compiling the kernel in helpers (if not cached): this fluid will step."""
-        precompile.start(parallel=self.num_threads > 1)
+        precompile.start(parallel=self._threaded())
+
+    def _threaded(self) -> bool:
+        """Whether this fluid runs the threaded build once it is compiled.
+
+        Not in a child forked from a process whose parallel loops ran on GNU OpenMP, which
+        would be killed at its first parallel loop (:mod:`pour_gym.io.numba_threads`): the
+        one-thread build runs, the same numbers, after a warning.
+        """
+        if self.num_threads == 1:
+            return False
+        if threads_usable():
+            return True
+        if not self._warned_fork:
+            self._warned_fork = True
+            what = f"the fluid (num_threads={self.num_threads})"
+            warnings.warn(FORK_WARNING.format(what=what), RuntimeWarning, stacklevel=3)
+        return False
 
     @property
     def build(self) -> str:
@@ -1249,13 +1252,13 @@ class PBFluid:
         A fluid on several threads runs the serial build (the same numbers) until a helper
         process has compiled the parallel one (:mod:`pour_gym.fluid.precompile`).
         """
-        if self.num_threads > 1 and precompile.ready("parallel", wait=False):
+        if self._threaded() and precompile.ready("parallel", wait=False):
             return "parallel"
         return "serial"
 
     def wait_for_kernel(self) -> None:
         """Wait until the build this fluid wants is compiled (before timing it, say)."""
-        precompile.ready("parallel" if self.num_threads > 1 else "serial", wait=True)
+        precompile.ready("parallel" if self._threaded() else "serial", wait=True)
 
     def kernel_arguments(self, dt: float) -> dict:
         """The compiled kernel's arguments for a step of ``dt`` s, by name (in order).

@@ -20,7 +20,7 @@ def open3d() -> ModuleType:
     if _open3d is not None:
         return _open3d
     # open3d brings a TBB too old for numba: the tbb wheel's must be the process's first.
-    from pour_gym.io.tbb import use_wheel_tbb
+    from pour_gym.io.numba_threads import use_wheel_tbb
 
     use_wheel_tbb()
     try:

@@ -31,6 +31,8 @@ import numpy as np
 from scipy.sparse import csr_matrix, diags
 from scipy.sparse.linalg import cg
 
+from pour_gym.io.numba_threads import FORK_WARNING, threads_usable, twin
+
 # numba falls back from TBB to its other threading layers by itself; on machines with an
 # old TBB it says so on every first parallel call, which is noise for users.
 warnings.filterwarnings("ignore", message="The TBB threading layer requires TBB")
@@ -79,8 +81,7 @@ def _neighbour_cells(q, origin, cell, dims):
     return cx, cy, cz
 
 
-@nb.njit(parallel=True, cache=True)
-def _kernel_sum(queries, points, weights, order, start, origin, cell, dims, inv2s2, r0):
+def _kernel_sum_loop(queries, points, weights, order, start, origin, cell, dims, inv2s2, r0):
     """sum_j weights_j * k(q, p_j) over the p_j within the cut-off ``cell``."""
     r2max = cell * cell
     out = np.zeros(queries.shape[0])
@@ -104,8 +105,7 @@ def _kernel_sum(queries, points, weights, order, start, origin, cell, dims, inv2
     return out
 
 
-@nb.njit(parallel=True, cache=True)
-def _kernel_rows(points, order, start, origin, cell, dims, inv2s2, r0, counts, indptr):
+def _kernel_rows_loop(points, order, start, origin, cell, dims, inv2s2, r0, counts, indptr):
     """Column indices and values of the truncated kernel matrix (CSR), in two passes.
 
     With ``indptr`` empty the first pass only counts each row's entries into ``counts``.
@@ -138,6 +138,26 @@ def _kernel_rows(points, order, start, origin, cell, dims, inv2s2, r0, counts, i
     return indices, data
 
 
+def _compiled(loop) -> dict:
+    """A loop compiled with parallel threads (True) and for one thread (False)."""
+    return {
+        True: nb.njit(parallel=True, cache=True)(loop),
+        False: nb.njit(cache=True)(twin(loop, "_serial")),
+    }
+
+
+_KERNEL_SUM = _compiled(_kernel_sum_loop)
+_KERNEL_ROWS = _compiled(_kernel_rows_loop)
+
+
+def _threaded() -> bool:
+    """Whether the parallel builds may run here (see :mod:`pour_gym.io.numba_threads`)."""
+    if threads_usable():
+        return True
+    warnings.warn(FORK_WARNING.format(what="the Gaussian field"), RuntimeWarning, stacklevel=3)
+    return False
+
+
 @dataclass
 class GaussianField:
     """A fitted implicit surface ``y(x) = sum_j alpha_j k(x, c_j)``.
@@ -166,7 +186,7 @@ class GaussianField:
     def __call__(self, x: np.ndarray) -> np.ndarray:
         """Evaluate the field at (Q, 3) positions in m."""
         order, start, origin, cell, dims = self._cells()
-        return _kernel_sum(
+        return _KERNEL_SUM[_threaded()](
             np.ascontiguousarray(x, dtype=np.float64),
             self.centres,
             self.alpha,
@@ -221,9 +241,10 @@ def kernel_matrix(points: np.ndarray, sigma: float, cutoff: float = 4.0) -> csr_
     order, start, origin, cell, dims = _build_cells(pts, cutoff * sigma)
     args = (pts, order, start, origin, cell, dims, 1.0 / (2 * sigma**2), (cutoff - 1.0) * sigma)
     counts = np.zeros(len(pts), dtype=np.int64)
-    _kernel_rows(*args, counts, np.zeros(0, dtype=np.int64))
+    kernel_rows = _KERNEL_ROWS[_threaded()]
+    kernel_rows(*args, counts, np.zeros(0, dtype=np.int64))
     indptr = np.concatenate([[0], np.cumsum(counts)])
-    indices, data = _kernel_rows(*args, counts, indptr)
+    indices, data = kernel_rows(*args, counts, indptr)
     return csr_matrix((data, indices, indptr), shape=(len(pts), len(pts)))
 
 

@@ -59,6 +59,81 @@ def _env_rate(factory, vector: str | None, steps: int, seed: int = 0) -> float:
     return rate
 
 
+def _warmed(factory, threads: int | None):
+    """An env from ``factory`` that has loaded its assets, fields and kernels (one step).
+
+    The episodes timed after it start from a seeded reset, so the step changes nothing
+    they compute.
+    """
+    env = factory() if threads is None else factory(num_threads=threads)
+    env.reset(seed=2**31 - 1)
+    env.step(env.action_space.sample())
+    return env
+
+
+def _paired_vec_rates(factory, steps: int, seed: int, threads: tuple[int | None, ...]) -> dict:
+    """The same Pour-v0 work done by one env in turn and by SB3's SubprocVecEnv of two.
+
+    The work: two episodes streams, ``i`` = 0, 1, each started by ``reset(seed=seed + i)``
+    (what ``SubprocVecEnv.seed(seed)`` gives worker ``i``) and fed ``steps`` random actions
+    drawn beforehand, episodes restarting unseeded as they end (as SB3's workers restart
+    them). One env runs stream 0 and then stream 1 in this process, at each of ``threads``
+    (None: its default); the vector env runs both at once, one per worker. The same
+    actions on the same seeds give the same episodes bit for bit (the returns are
+    compared), so the ratios compare equal work: comparing different seeds would compare
+    fills of 200 to 400 particles, whose steps differ in cost by 2x.
+
+    Returns:
+        Env-steps per second by case (``one_thread`` / ``default_threads`` for one env,
+        ``subproc_2``); ``same_work``: whether every case's summed rewards agree; and
+        ``lockstep_bound``, per one-env case: the most two workers stepping in lockstep
+        could gain over it, from its own step times (the sum of both streams' steps over
+        the sum of the slower of each pair).
+    """
+    import functools
+    import time
+
+    from stable_baselines3.common.vec_env import SubprocVecEnv
+
+    space = factory().action_space
+    space.seed(seed)
+    actions = np.array([[space.sample() for _ in range(2)] for _ in range(steps)])
+    rates, returns, bound = {}, {}, {}
+    for t in threads:
+        env = _warmed(factory, t)
+        total = 0.0
+        seconds = np.zeros((2, steps))  # each step's, its episode's restart included
+        for i in range(2):
+            env.reset(seed=seed + i)
+            for k in range(steps):
+                start = time.perf_counter()
+                _, reward, terminated, truncated, _ = env.step(actions[k, i])
+                total += float(reward)
+                if terminated or truncated:
+                    env.reset()
+                seconds[i, k] = time.perf_counter() - start
+        env.close()
+        name = "default_threads" if t is None else "one_thread" if t == 1 else f"threads_{t}"
+        rates[name], returns[name] = 2 * steps / seconds.sum(), total
+        # Two workers in lockstep wait for the slower step each time: at best they do this
+        # env's work in the sum of the slower of each pair of steps.
+        bound[name] = float(seconds.sum() / seconds.max(axis=0).sum())
+    vec = SubprocVecEnv([functools.partial(_warmed, factory, None)] * 2)
+    vec.seed(seed)
+    vec.reset()
+    total = 0.0
+    start = time.perf_counter()
+    for k in range(steps):
+        _, reward, _, _ = vec.step(actions[k])
+        total += float(reward[0]) + float(reward[1])
+    rates["subproc_2"] = 2 * steps / (time.perf_counter() - start)
+    vec.close()
+    returns["subproc_2"] = total
+    # The summation order differs (stream by stream, or step by step): equal to rounding.
+    same = bool(np.allclose(list(returns.values()), total, rtol=1e-9, atol=1e-9))
+    return {**rates, "same_work": same, "lockstep_bound": bound}
+
+
 def _pour_realtime(kwargs: dict, episodes: int, seed: int = 0, env_id: str = POUR_V0) -> float:
     """Simulated s per wall s of the scripted policy's episode steps, red cup -> broad cup."""
     env = make(env_id, source_objects="red_cup", target_objects="broad_cup", **kwargs)
@@ -83,11 +158,12 @@ def bench_envs(
     - ``panda_pour_v0``: the same episodes (same seeds, so the same fills) with the Panda
       holding the cup, each timed run right after Pour-v0's; its speed over Pour-v0's
       (``over_pour_v0``) is the median of the ratios of those pairs.
-    - ``vec``: Pour-v0 env-steps per second under random actions, SB3's vector envs:
-      ``dummy_1`` (one env in this process, default threads), ``one_thread`` (the same
-      with ``num_threads=1``), ``subproc_2`` and ``subproc_4`` (worker processes); the
-      first three alternate run by run, and ``ratios`` are medians of the ratios within
-      each run's trio.
+    - ``vec``: Pour-v0 env-steps per second under random actions: one env on one thread
+      (``one_thread``) and at its default threads (``default_threads``) doing the same
+      work as SB3's ``SubprocVecEnv`` of two workers (``subproc_2``): the same seeds and
+      actions (:func:`_paired_vec_rates`; ``same_work`` says the returns agreed); and
+      ``subproc_4``, four workers on their own seeds. ``ratios`` are medians of the
+      ratios within each run, with the most lockstep allows (``lockstep_bound_...``).
     - ``rows``: the one-step environments alone and vectorised by two (Gymnasium's).
     - ``sensors``: ms per Pour-v0 step in each observation mode (:func:`bench_sensors`).
 
@@ -144,26 +220,31 @@ def bench_envs(
         }
     if "vec" in sections:
         pour = functools.partial(make, POUR_V0)
-        single = functools.partial(make, POUR_V0, num_threads=1)
-        # The cases a ratio is taken between alternate run by run, as above.
-        runs: dict[str, list[float]] = {"dummy_1": [], "one_thread": [], "subproc_2": []}
+        # Each run: the same work by one env (one thread, then its default threads) and by
+        # two workers, back to back; the ratios are taken within each run.
+        runs = []
         for r in range(repeats):
-            for name, factory, mode in (
-                ("dummy_1", pour, "dummy"),
-                ("one_thread", single, "dummy"),
-                ("subproc_2", pour, "subproc_2"),
-            ):
-                runs[name].append(_env_rate(factory, mode, steps, seed=r))
-                bar.update()
-        vec = {name: float(statistics.median(v)) for name, v in runs.items()}
+            runs.append(_paired_vec_rates(pour, steps, seed=100 * r, threads=(1, None)))
+            bar.update(3)
+        vec = {
+            name: float(statistics.median(run[name] for run in runs))
+            for name in ("default_threads", "one_thread", "subproc_2")
+        }
         vec["subproc_4"] = median(lambda r: _env_rate(pour, "subproc_4", steps, seed=r))
+        vec["same_work"] = all(run["same_work"] for run in runs)
         out["vec"] = vec
         out["ratios"] = {
             "subproc_2_over_one_thread": float(statistics.median(
-                b / a for a, b in zip(runs["one_thread"], runs["subproc_2"], strict=True)
+                run["subproc_2"] / run["one_thread"] for run in runs
             )),
             "subproc_2_over_default": float(statistics.median(
-                b / a for a, b in zip(runs["dummy_1"], runs["subproc_2"], strict=True)
+                run["subproc_2"] / run["default_threads"] for run in runs
+            )),
+            "each_subproc_2_over_one_thread": [
+                run["subproc_2"] / run["one_thread"] for run in runs
+            ],
+            "lockstep_bound_over_one_thread": float(statistics.median(
+                run["lockstep_bound"]["one_thread"] for run in runs
             )),
         }  # fmt: skip
     if "rows" in sections:
@@ -255,17 +336,24 @@ def envs_table(result: dict) -> str:
     if "vec" in result:
         v, q = result["vec"], result["ratios"]
         vector = [
-            ["DummyVecEnv, 1 env, default threads", f"{v['dummy_1']:.1f}"],
-            ["DummyVecEnv, 1 env, num_threads=1", f"{v['one_thread']:.1f}"],
+            [
+                "one env, default threads, both workers' episodes in turn",
+                f"{v['default_threads']:.1f}",
+            ],
+            ["one env, num_threads=1, both workers' episodes in turn", f"{v['one_thread']:.1f}"],
             ["SubprocVecEnv, 2 workers", f"{v['subproc_2']:.1f}"],
-            ["SubprocVecEnv, 4 workers", f"{v['subproc_4']:.1f}"],
+            ["SubprocVecEnv, 4 workers (their own seeds)", f"{v['subproc_4']:.1f}"],
         ]
         parts += [
             markdown_table(["Pour-v0, random actions, SB3 vector env", "env-steps/s"], vector),
             "",
-            f"SubprocVecEnv(2) over one env on one thread: "
-            f"{q['subproc_2_over_one_thread']:.2f}x; over one env at its default threads: "
-            f"{q['subproc_2_over_default']:.2f}x",
+            f"The same work (same seeds and actions; returns equal: {v['same_work']}): "
+            f"SubprocVecEnv(2) over one env on one thread "
+            f"{q['subproc_2_over_one_thread']:.2f}x (runs: "
+            + ", ".join(f"{x:.2f}x" for x in q["each_subproc_2_over_one_thread"])
+            + f"); over one env at its default threads {q['subproc_2_over_default']:.2f}x. "
+            f"Two workers in lockstep, each step waiting for the slower, could gain at most "
+            f"{q['lockstep_bound_over_one_thread']:.2f}x over one thread on this work.",
             "",
         ]
     if "rows" in result:
