@@ -74,7 +74,7 @@ def _warmed(factory, threads: int | None):
 def _paired_vec_rates(factory, steps: int, seed: int, threads: tuple[int | None, ...]) -> dict:
     """The same Pour-v0 work done by one env in turn and by SB3's SubprocVecEnv of two.
 
-    The work: two episodes streams, ``i`` = 0, 1, each started by ``reset(seed=seed + i)``
+    The work: two episode streams, ``i`` = 0, 1, each started by ``reset(seed=seed + i)``
     (what ``SubprocVecEnv.seed(seed)`` gives worker ``i``) and fed ``steps`` random actions
     drawn beforehand, episodes restarting unseeded as they end (as SB3's workers restart
     them). One env runs stream 0 and then stream 1 in this process, at each of ``threads``
@@ -95,7 +95,9 @@ def _paired_vec_rates(factory, steps: int, seed: int, threads: tuple[int | None,
 
     from stable_baselines3.common.vec_env import SubprocVecEnv
 
-    space = factory().action_space
+    probe = factory()
+    space = probe.action_space
+    probe.close()
     space.seed(seed)
     actions = np.array([[space.sample() for _ in range(2)] for _ in range(steps)])
     rates, returns, bound = {}, {}, {}
@@ -114,7 +116,7 @@ def _paired_vec_rates(factory, steps: int, seed: int, threads: tuple[int | None,
                 seconds[i, k] = time.perf_counter() - start
         env.close()
         name = "default_threads" if t is None else "one_thread" if t == 1 else f"threads_{t}"
-        rates[name], returns[name] = 2 * steps / seconds.sum(), total
+        rates[name], returns[name] = float(2 * steps / seconds.sum()), total
         # Two workers in lockstep wait for the slower step each time: at best they do this
         # env's work in the sum of the slower of each pair of steps.
         bound[name] = float(seconds.sum() / seconds.max(axis=0).sum())
