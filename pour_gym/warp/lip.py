@@ -158,8 +158,8 @@ def lip_depth(mesh: trimesh.Trimesh) -> LipFit:
             # where it was measured (a reconstruction's wall thickens over centimetres).
             ends.append(MEASURED_TO)
             continue
-        changing = np.flatnonzero(lip & changing)
-        ends.append(float(depths[changing[-1]]) if len(changing) else 0.0)
+        in_lip = np.flatnonzero(lip & changing)
+        ends.append(float(depths[in_lip[-1]]) if len(in_lip) else 0.0)
     if len(ends) < RAYS // 2:
         return LipFit(None, len(ends), f"the wall was measured on {len(ends)} of {RAYS} rays")
     q1, depth, q3 = (float(q) for q in np.percentile(ends, [25, 50, 75]))

@@ -78,7 +78,7 @@ def _paired_vec_rates(factory, steps: int, seed: int, threads: tuple[int | None,
     (what ``SubprocVecEnv.seed(seed)`` gives worker ``i``) and fed ``steps`` random actions
     drawn beforehand, episodes restarting unseeded as they end (as SB3's workers restart
     them). One env runs stream 0 and then stream 1 in this process, at each of ``threads``
-    (None: its default); the vector env runs both at once, one per worker. The same
+    (1, or None: its default); the vector env runs both at once, one per worker. The same
     actions on the same seeds give the same episodes bit for bit (the returns are
     compared), so the ratios compare equal work: comparing different seeds would compare
     fills of 200 to 400 particles, whose steps differ in cost by 2x.
@@ -95,14 +95,15 @@ def _paired_vec_rates(factory, steps: int, seed: int, threads: tuple[int | None,
 
     from stable_baselines3.common.vec_env import SubprocVecEnv
 
-    probe = factory()
-    space = probe.action_space
-    probe.close()
-    space.seed(seed)
-    actions = np.array([[space.sample() for _ in range(2)] for _ in range(steps)])
+    actions = None
     rates, returns, bound = {}, {}, {}
     for t in threads:
         env = _warmed(factory, t)
+        if actions is None:  # drawn once, from the first env's space (they are all alike)
+            env.action_space.seed(seed)
+            actions = np.array(
+                [[env.action_space.sample() for _ in range(2)] for _ in range(steps)]
+            )
         total = 0.0
         seconds = np.zeros((2, steps))  # each step's, its episode's restart included
         for i in range(2):
@@ -115,7 +116,7 @@ def _paired_vec_rates(factory, steps: int, seed: int, threads: tuple[int | None,
                     env.reset()
                 seconds[i, k] = time.perf_counter() - start
         env.close()
-        name = "default_threads" if t is None else "one_thread" if t == 1 else f"threads_{t}"
+        name = "one_thread" if t == 1 else "default_threads"
         rates[name], returns[name] = float(2 * steps / seconds.sum()), total
         # Two workers in lockstep wait for the slower step each time: at best they do this
         # env's work in the sum of the slower of each pair of steps.
