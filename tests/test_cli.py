@@ -119,3 +119,29 @@ def test_label_says_how_the_rim_was_drawn(tmp_path, cli):
     assert "rim 1.000" in text
     text = cli("label", "ycb_mug", "--out", str(tmp_path / "b")).stdout
     assert "rim as warped (the lip could not be told: the wall does not settle" in text
+
+
+@pytest.mark.slow
+def test_bench_names_its_machine_and_keeps_v_hacd_off_stdout(tmp_path, monkeypatch, cli):
+    """A benchmark's table begins with the machine it ran on, and V-HACD's progress (the
+    sphere backend decomposes the cup on first use, from C) does not reach stdout."""
+    monkeypatch.setenv("POUR_GYM_CACHE", str(tmp_path))  # nothing cached: V-HACD runs
+    args = ("bench", "fluid", "--sizes", "300", "--bullet-sizes", "300", "--repeats", "1")
+    out = cli(*args).stdout
+    assert list(tmp_path.glob("sdf/vhacd_*.obj")), "the decomposition did not run"
+    lines = out.splitlines()
+    assert lines[0].startswith("machine: ") and lines[0].endswith(" cores"), out[:500]
+    assert lines[1].startswith("| backend |"), out[:500]
+    assert "V-HACD" not in out and "Voxelization" not in out
+
+
+def test_the_machine_of_a_benchmark():
+    """What ``pour-gym bench`` records of the machine: the processor and numba's target."""
+    from pour_gym.apps.bench.machine import machine, machine_line
+
+    info = machine()
+    assert info["cpu"] and info["llvm_cpu"] and info["cores"] >= 1
+    assert json.loads(json.dumps(info)) == info
+    assert (
+        machine_line(info) == f"machine: {info['cpu']} ({info['llvm_cpu']}), {info['cores']} cores"
+    )

@@ -310,7 +310,16 @@ def cmd_build_assets(args: argparse.Namespace) -> Output:
 
 
 def cmd_bench(args: argparse.Namespace) -> Output:
-    """Benchmarks."""
+    """Benchmarks; every result names the machine it ran on (``machine`` in the JSON)."""
+    from pour_gym.apps.bench.machine import machine, machine_line
+
+    doc, text = _bench(args)
+    info = machine()
+    return ({**doc, "machine": info}, lambda: f"{machine_line(info)}\n{text()}")
+
+
+def _bench(args: argparse.Namespace) -> Output:
+    """The benchmark ``args.what`` asks for."""
     from pour_gym.apps.bench import (
         ENV_SECTIONS,
         accuracy_table,

@@ -29,6 +29,7 @@ import trimesh
 from scipy.spatial.transform import Rotation
 
 from pour_gym.fluid.pbf import GRAVITY, MAX_SPEED, PBFConfig, PosedCollider, substep_poses
+from pour_gym.io.stdio import redirect_stdout_fd
 
 
 def convex_parts(client, mesh: trimesh.Trimesh, cache_dir: str | Path) -> Path:
@@ -50,17 +51,20 @@ def convex_parts(client, mesh: trimesh.Trimesh, cache_dir: str | Path) -> Path:
         out.parent.mkdir(parents=True, exist_ok=True)
         source = out.with_suffix(".in.obj")
         mesh.export(source)
-        # Fine voxels and a low concavity keep thin walls as their own pieces.
-        client.vhacd(
-            str(source),
-            str(out),
-            str(out.with_suffix(".log")),
-            resolution=200000,
-            concavity=0.0005,
-            maxNumVerticesPerCH=64,
-            planeDownsampling=2,
-            convexhullDownsampling=2,
-        )
+        # Fine voxels and a low concavity keep thin walls as their own pieces. V-HACD
+        # reports its progress on stdout, from C: discarded, or a command's table or JSON
+        # would begin with it.
+        with redirect_stdout_fd():
+            client.vhacd(
+                str(source),
+                str(out),
+                str(out.with_suffix(".log")),
+                resolution=200000,
+                concavity=0.0005,
+                maxNumVerticesPerCH=64,
+                planeDownsampling=2,
+                convexhullDownsampling=2,
+            )
         source.unlink()
     return out
 

@@ -227,8 +227,7 @@ class World:
         rot, pos = as_rotation(rotation), np.asarray(position, dtype=np.float64)
         convex = None
         if self.solid or isinstance(self.fluid, BulletFluid):
-            with redirect_stdout_fd():  # V-HACD reports its progress on stdout
-                convex = convex_parts(self.client, asset.mesh, self.sdf_cache)
+            convex = convex_parts(self.client, asset.mesh, self.sdf_cache)
         body = mesh_body(
             self.client,
             asset.mesh,
