@@ -284,9 +284,10 @@ def test_closed_loop_poc_pours_twenty_particles():
     cup it was tuned on and on one it never saw: within 1.5 on average over the seeds of
     docs/poc (each pour within 3), spilling nothing.
 
-    Over several pours, not one: the fluid's last bits depend on the processor numba
-    compiles for, and one pour's error with them (seed 0 on the red cup: within 3 on the
-    machine of 2026-12-02, 4 on an AMD EPYC, where its next nine seeds give 0-1).
+    Over several pours, not one: the fluid's last bits depend on the instruction set numba
+    compiles for (docs/fluid.md), and one pour's error with them (seed 0 on the red cup:
+    within 3 on the machine of 2026-12-02, 4 on an AMD EPYC, where its next nine seeds
+    give 0-1).
     """
     from pour_gym.agents.poc import run_poc
 
