@@ -36,7 +36,7 @@ import numpy as np
 # As a module, not through the package (whose __init__ imports this module).
 import pour_gym.fluid.precompile as precompile
 from pour_gym.fluid.sdf import FASTMATH, NO_REFCOUNT, SignedDistanceField, trilinear
-from pour_gym.io.numba_threads import FORK_WARNING, threads_usable, twin
+from pour_gym.io.numba_threads import FORK_WARNING, threads_usable, twin, usable_cores
 
 GRAVITY = np.array([0.0, 0.0, -9.81])
 # Water poured from a table-top cup never moves this fast; a particle that does has diverged.
@@ -149,11 +149,11 @@ def default_threads() -> int:
     """
     if multiprocessing.parent_process() is not None:
         return 1
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    cores = usable_cores()
     limit = os.environ.get("OMP_NUM_THREADS", "")
     if limit.strip().isdigit() and int(limit) > 0:
-        cores = min(cores or 1, int(limit))
-    return max(1, min(cores or 1, nb.config.NUMBA_NUM_THREADS))
+        cores = min(cores, int(limit))
+    return max(1, min(cores, nb.config.NUMBA_NUM_THREADS))
 
 
 def _poly6(r2, h):

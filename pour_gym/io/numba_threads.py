@@ -18,6 +18,9 @@ OpenMP's threads spin between loops where TBB's sleep, which on this project's 2
 made Pour-v0 at two threads 1.17x faster (``docs/fluid.md``). So pour-gym's parallel code
 asks :func:`threads_usable` first and runs its one-thread build in such a child (the same
 numbers), after a warning.
+
+**How many.** :func:`usable_cores`: the processors this process may run on, which the
+fluid's default thread count and the benchmarks' record of the machine both start from.
 """
 
 from __future__ import annotations
@@ -37,6 +40,12 @@ FORK_WARNING = (
     "'forkserver' or 'spawn' to give them threads (or, on Linux x86_64, leave "
     "NUMBA_THREADING_LAYER unset: the tbb wheel's TBB is the default there)."
 )
+
+
+def usable_cores() -> int:
+    """Processors this process may run on: its CPU affinity where the OS has one, else all."""
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    return max(1, int(cores or 1))
 
 
 def loaded_version() -> int | None:

@@ -8,8 +8,9 @@ with another.
 
 from __future__ import annotations
 
-import os
 import platform
+
+from pour_gym.io.numba_threads import usable_cores
 
 
 def _cpu_model() -> str:
@@ -35,11 +36,11 @@ def machine() -> dict:
     import numba
     from llvmlite import binding
 
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
     return {
         "cpu": _cpu_model(),
-        "llvm_cpu": binding.get_host_cpu_name(),
-        "cores": int(cores or 1),
+        # numba's target: the host's, unless NUMBA_CPU_NAME names another.
+        "llvm_cpu": numba.config.CPU_NAME or binding.get_host_cpu_name(),
+        "cores": usable_cores(),
         "python": platform.python_version(),
         "numba": numba.__version__,
         "threading_layer": str(numba.config.THREADING_LAYER),
