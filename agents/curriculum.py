@@ -10,6 +10,10 @@ from __future__ import annotations
 import gymnasium as gym
 import numpy as np
 
+# The curriculum's draws come from a stream of their own, spawned from the episode seed
+# under this key (the env's own draws and its sensors' take other streams of that seed).
+STREAM = 0x5C
+
 
 class TrainingStarts(gym.Wrapper):
     """Pour-v0: training episodes that start over the target, or with less left to hold back.
@@ -50,12 +54,19 @@ class TrainingStarts(gym.Wrapper):
             fill_margin = (lo, hi)
         self.near_target = float(near_target)
         self.fill_margin = fill_margin
-        self._rng = np.random.default_rng()
+        self._rng: np.random.Generator | None = None
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
-        """Reset, drawing this episode's start (options given by the caller win)."""
-        if seed is not None:
-            self._rng = np.random.default_rng(seed)
+        """Reset, drawing this episode's start (options given by the caller win).
+
+        The draws are reproducible from the env's seed: a seeded reset starts them anew
+        from its seed; before the first one, from the seed the env's own generator has
+        (random, if the env was never seeded, as its episodes are then).
+        """
+        if seed is not None or self._rng is None:
+            if seed is None:
+                seed = self.env.unwrapped.np_random_seed
+            self._rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(STREAM,)))
         options = dict(options or {})
         # Both draws are taken every episode, so that one setting does not shift the other's.
         near = bool(self._rng.random() < self.near_target)

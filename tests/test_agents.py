@@ -63,6 +63,29 @@ def test_training_starts_draw_where_an_episode_starts_and_how_full():
         TrainingStarts(fixed, fill_margin=(10, 5))
 
 
+def test_training_starts_follow_the_env_seed_from_the_first_reset():
+    """The curriculum's draws come from the env's seed, also when its first reset is not
+    seeded (an env seeded before it was wrapped): two such runs start alike."""
+    import gymnasium as gym
+
+    from pour_gym.agents.curriculum import TrainingStarts
+
+    def starts():
+        inner = gym.make("PourGym/Pour-v0", objects="red_cup", num_threads=1)
+        inner.reset(seed=7)
+        env = TrainingStarts(inner, near_target=0.5, fill_margin=(0, 40))
+        drawn = []
+        for _ in range(4):
+            _, info = env.reset()
+            drawn.append((info["fill"] - info["target_amount"], tuple(env.unwrapped.lip[:2])))
+        env.close()
+        return drawn
+
+    first = starts()
+    assert first == starts()
+    assert len({margin for margin, _ in first}) > 1
+
+
 @pytest.mark.slow
 def test_train_py_trains_checkpoints_resumes_and_evaluates(tmp_path):
     out = tmp_path / "run"

@@ -14,7 +14,7 @@ import trimesh
 from scipy.spatial.transform import Rotation
 
 from pour_gym.errors import InputError
-from pour_gym.fluid import PBFConfig, PBFluid, build_sdf, precompile
+from pour_gym.fluid import PBFConfig, PBFluid, build_sdf
 from pour_gym.fluid.validation import (
     BASE,
     COLUMN_HEIGHT,
@@ -137,43 +137,6 @@ def test_a_push_out_of_a_wall_gives_no_more_speed_than_the_particle_brought(cup_
     assert d[0] >= cfg.radius - 1e-4  # out of the material, a radius off the wall
     assert fluid.x[0, 0] < R_IN  # on the side of the cavity, where it was nearest
     assert np.linalg.norm(fluid.v[0]) < 0.1  # m/s: gravity's 0.04, not the push's 1
-
-
-@pytest.mark.slow
-def test_a_kernel_loaded_from_the_cache_computes_what_it_computed_when_compiled(tmp_path):
-    """Numba's on-disk cache changes no number: a process that compiles the kernel itself,
-    one that loads it, and one whose helpers compiled it (in an empty cache) give the same
-    particles, bit for bit (with LLVM free to reassociate sums, they did not; see
-    ``pour_gym.fluid.sdf.FASTMATH``); the loading process compiles nothing."""
-    script = (
-        "import hashlib, numpy as np\n"
-        "from pour_gym.fluid import PBFConfig, PBFluid, build_sdf, pbf\n"
-        "from pour_gym.objects import cylinder_cup\n"
-        f"cup = cylinder_cup({R_IN}, {HEIGHT}, {WALL}, {BASE})\n"
-        "g = np.arange(-0.03, 0.03, 0.005)\n"
-        f"z = np.arange({BASE} + 0.0025, 0.05, 0.005)\n"
-        "pts = np.stack(np.meshgrid(g, g, z, indexing='ij'), -1).reshape(-1, 3)\n"
-        "fluid = PBFluid(pts, PBFConfig(), num_threads=1)\n"
-        "fluid.add_collider(build_sdf(cup, spacing=0.002))\n"
-        "for _ in range(10):\n"
-        "    fluid.step(0.1)\n"
-        "misses = sum(pbf._ADVANCE[False].stats.cache_misses.values())\n"
-        "print(hashlib.sha256(fluid.x.tobytes()).hexdigest(), misses)\n"
-    )
-
-    def run(cache, helpers):
-        env = {**os.environ, "NUMBA_CACHE_DIR": str(cache), precompile.ENV_SWITCH: helpers}
-        done = subprocess.run(
-            [sys.executable, "-c", script], capture_output=True, text=True, check=True, env=env
-        )
-        digest, misses = done.stdout.split()
-        return digest, int(misses)
-
-    compiled, misses = run(tmp_path / "a", helpers="0")
-    assert misses == 1, "the first process did not compile the kernel itself"
-    assert list((tmp_path / "a").rglob("*.nbi")), "the first process wrote no cache"
-    assert run(tmp_path / "a", helpers="0") == (compiled, 0)
-    assert run(tmp_path / "b", helpers="1") == (compiled, 0)
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="the tbb wheel is Linux's")

@@ -53,39 +53,68 @@ def test_a_failing_helper_leaves_the_compile_to_this_process(monkeypatch):
 def test_helpers_started_together_compile_a_build_once(tmp_path):
     """Two processes' helpers for the same cache: one compiles, the other waits and finds
     it compiled (as the workers of a vector env do)."""
-    helpers = [_helper(tmp_path, "walls") for _ in range(2)]
+    helpers = [_helper(tmp_path, "serial") for _ in range(2)]
     outputs = [h.communicate(timeout=600) for h in helpers]
     assert [h.returncode for h in helpers] == [0, 0]
-    assert [out.strip() for out, _ in outputs] == ["walls", "walls"]
-    reports = sorted(re.search(r"precompile: (walls \w+)", err).group(1) for _, err in outputs)
-    assert reports == ["walls compiled", "walls found"]
+    assert [out.strip() for out, _ in outputs] == ["serial", "serial"]
+    reports = sorted(re.search(r"precompile: (serial \w+)", err).group(1) for _, err in outputs)
+    assert reports == ["serial compiled", "serial found"]
+
+
+# A cylinder cup of 2000 particles tilted to 100 degrees over two seconds (it pours out onto
+# the table: walls, floor and free surface all take part), on one thread and on two; prints
+# the particles' hash on each and how many drivers this process compiled.
+TILTING_POUR = """
+import hashlib, numpy as np
+from pour_gym.fluid import PBFConfig, PBFluid, build_sdf, pbf
+from pour_gym.objects import cylinder_cup
+R, H, W, B = 0.036, 0.10, 0.004, 0.006
+field = build_sdf(cylinder_cup(R, H, W, B), spacing=0.001)
+g = np.arange(-R + 0.0025, R, 0.005)
+z = np.arange(B + 0.0025, H - 0.01, 0.005)
+pts = np.stack(np.meshgrid(g, g, z, indexing="ij"), -1).reshape(-1, 3)
+pts = pts[np.hypot(pts[:, 0], pts[:, 1]) < R - 0.0025]
+pts = pts[np.lexsort((pts[:, 1], pts[:, 0], pts[:, 2]))][:2000]
+hashes = []
+for threads in (1, 2):
+    fluid = PBFluid(pts, PBFConfig(), num_threads=threads, floor=0.0)
+    fluid.wait_for_kernel()
+    assert fluid.build == ("serial" if threads == 1 else "parallel")
+    cup = fluid.add_collider(field, translation=np.array([0.0, 0.0, 0.05]))
+    for k in range(20):
+        a = np.radians(min(100.0, 6.0 * k))
+        cup.rotation = np.array([[np.cos(a), 0, np.sin(a)], [0, 1, 0], [-np.sin(a), 0, np.cos(a)]])
+        fluid.step(0.1)
+    hashes.append(hashlib.sha256(fluid.x.tobytes()).hexdigest())
+misses = sum(sum(d.stats.cache_misses.values()) for d in pbf._ADVANCE.values())
+print(*hashes, misses)
+"""
 
 
 @pytest.mark.slow
-def test_the_parts_compiled_apart_are_the_ones_the_driver_calls(tmp_path):
-    """The one-thread build compiled in two parts by two processes: the driver, compiled
-    after both, loads the walls part and adds no second version of any function (the parts
-    were called with the types the driver passes)."""
-    walls = _helper(tmp_path, "walls")
-    assert walls.communicate(timeout=600)[0].strip() == "walls"
-    script = (
-        "import gc\n"
-        "from numba.core.registry import CPUDispatcher\n"
-        "from pour_gym.fluid import compile_helper\n"
-        "compile_helper.compile_build('serial')\n"
-        "for d in gc.get_objects():\n"
-        "    if isinstance(d, CPUDispatcher) and d.signatures:\n"
-        "        misses = sum(d.stats.cache_misses.values())\n"
-        "        print(d.py_func.__qualname__, len(d.signatures), misses)\n"
-    )
-    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path), precompile.ENV_SWITCH: "0"}
-    done = subprocess.run(
-        [sys.executable, "-c", script], env=env, capture_output=True, text=True, check=True
-    )
-    lines = (line.split() for line in done.stdout.splitlines())
-    rows = {name: (int(n), int(m)) for name, n, m in lines}
-    for name in ("_pass_collide", "_wall_term"):
-        assert rows[name] == (1, 0), f"{name} was compiled again, not loaded"
-    for name in ("_lambda_run", "_correct_run", "_finish_run", "_sort_cells", "_pose_at"):
-        assert rows[name][0] == 1, f"{name} has a second version: the part passed other types"
-    assert rows["_advance_serial"] == (1, 1)
+def test_every_build_of_the_kernel_pours_the_same_particles(tmp_path):
+    """The kernel compiled by the helpers, compiled in the process that steps, and loaded
+    from numba's cache by a later process gives the same particles bit for bit, on one
+    thread and on two, in a pour that tilts (walls, floor, free surface). Before the parts
+    were kept out of the cache (``pour_gym.fluid.sdf.PART_CACHE``), the helpers' build
+    differed from the other in its last bits: a cup at rest did not show it."""
+
+    def pour(cache, helpers):
+        env = {**os.environ, "NUMBA_CACHE_DIR": str(cache), precompile.ENV_SWITCH: helpers}
+        done = subprocess.run(
+            [sys.executable, "-c", TILTING_POUR], env=env, capture_output=True, text=True
+        )
+        assert done.returncode == 0, done.stderr[-2000:]
+        one, two, misses = done.stdout.split()
+        return one, two, int(misses)
+
+    helpers = pour(tmp_path / "a", helpers="1")
+    in_process = pour(tmp_path / "b", helpers="0")
+    assert in_process[2] == 2, "the process did not compile both builds itself"
+    assert list((tmp_path / "b").rglob("*.nbi")), "the process wrote no cache"
+    cached = pour(tmp_path / "b", helpers="0")
+    assert cached[2] == 0, "a process with a warm cache compiled the kernel again"
+    assert pour(tmp_path / "a", helpers="0")[2] == 0
+    assert helpers[0] == helpers[1], "one thread and two threads poured differently"
+    assert in_process[:2] == helpers[:2], "the helpers' build and the in-process build differ"
+    assert cached[:2] == helpers[:2], "the cached build differs from the compiled one"

@@ -35,7 +35,13 @@ import numpy as np
 
 # As a module, not through the package (whose __init__ imports this module).
 import pour_gym.fluid.precompile as precompile
-from pour_gym.fluid.sdf import FASTMATH, NO_REFCOUNT, SignedDistanceField, trilinear
+from pour_gym.fluid.sdf import (
+    FASTMATH,
+    NO_REFCOUNT,
+    PART_CACHE,
+    SignedDistanceField,
+    trilinear,
+)
 from pour_gym.io.numba_threads import FORK_WARNING, threads_usable, twin, usable_cores
 
 GRAVITY = np.array([0.0, 0.0, -9.81])
@@ -224,7 +230,7 @@ def quaternion(rotation: np.ndarray) -> np.ndarray:
     return q / np.linalg.norm(q)
 
 
-@nb.njit(cache=True, **NO_REFCOUNT)
+@nb.njit(cache=PART_CACHE, **NO_REFCOUNT)
 def _slerp_matrix(q0, q1, f, out):
     """Rotation matrix of the slerp from unit quaternion q0 to q1 at fraction f, into out."""
     dot = q0[0] * q1[0] + q0[1] * q1[1] + q0[2] * q1[2] + q0[3] * q1[3]
@@ -254,7 +260,7 @@ def _slerp_matrix(q0, q1, f, out):
     out[2, 2] = 1.0 - 2.0 * (x * x + y * y)
 
 
-@nb.njit(cache=True, **NO_REFCOUNT)
+@nb.njit(cache=PART_CACHE, **NO_REFCOUNT)
 def _pose_at(q0, q1, r0, r1, t0, t1, f, rot, trans):
     """A collider's pose at fraction f of the step (the end points exactly as given)."""
     if f <= 0.0 or f >= 1.0:
@@ -285,7 +291,7 @@ def substep_poses(collider: PosedCollider, n_sub: int) -> tuple[np.ndarray, np.n
 
 
 # ---------------------------------------------------------------------- the kernel
-@nb.njit(cache=True, fastmath=FASTMATH, error_model="numpy", **NO_REFCOUNT)
+@nb.njit(cache=PART_CACHE, fastmath=FASTMATH, error_model="numpy", **NO_REFCOUNT)
 def _to_local(rot, trans, x, y, z):
     """World point -> a collider's frame (q = R^T (p - t))."""
     dx, dy, dz = x - trans[0], y - trans[1], z - trans[2]
@@ -296,7 +302,7 @@ def _to_local(rot, trans, x, y, z):
     )
 
 
-@nb.njit(cache=True, fastmath=FASTMATH, error_model="numpy", **NO_REFCOUNT)
+@nb.njit(cache=PART_CACHE, fastmath=FASTMATH, error_model="numpy", **NO_REFCOUNT)
 def _sample(fvals, fint, fgeo, k, x, y, z):
     """Collider k's signed distance and unit gradient at a point of its frame.
 
@@ -308,7 +314,7 @@ def _sample(fvals, fint, fgeo, k, x, y, z):
                      fgeo[k, 1], fgeo[k, 2], fgeo[k, 3], x, y, z)  # fmt: skip
 
 
-@nb.njit(cache=True, fastmath=FASTMATH, error_model="numpy", **NO_REFCOUNT)
+@nb.njit(cache=PART_CACHE, fastmath=FASTMATH, error_model="numpy", **NO_REFCOUNT)
 def _floor_of(fgeo, k, x, y, z):
     """A lower bound of collider k's distance at a point of its frame (no sample needed).
 
@@ -328,7 +334,7 @@ def _floor_of(fgeo, k, x, y, z):
     return fgeo[k, 7] + ex + ey + ez - 1e-6
 
 
-@nb.njit(cache=True, **NO_REFCOUNT)
+@nb.njit(cache=PART_CACHE, **NO_REFCOUNT)
 def _sort_cells(p, h, max_cells, keys, order, start, sorted_p, grid):
     """Counting sort of the particles into a dense cell grid over their bounds.
 
@@ -384,7 +390,7 @@ def _sort_cells(p, h, max_cells, keys, order, start, sorted_p, grid):
     grid[4], grid[5], grid[6] = nx, ny, nz
 
 
-@nb.njit(cache=True, fastmath=FASTMATH, error_model="numpy", **NO_REFCOUNT)
+@nb.njit(cache=PART_CACHE, fastmath=FASTMATH, error_model="numpy", **NO_REFCOUNT)
 def _later_of(si, h2, grid, order, start, sorted_p, later, n_later):
     """The later neighbours (in sort order) of the particle in sorted slot si.
 
@@ -415,7 +421,7 @@ def _later_of(si, h2, grid, order, start, sorted_p, later, n_later):
     n_later[si] = c
 
 
-@nb.njit(cache=True, fastmath=FASTMATH, error_model="numpy", **NO_REFCOUNT)
+@nb.njit(cache=PART_CACHE, fastmath=FASTMATH, error_model="numpy", **NO_REFCOUNT)
 def _first_entry(fvals, fint, fgeo, k, sx, sy, sz, qx, qy, qz, radius):
     """Where a straight path from s to q first comes within ``radius`` of collider k's wall.
 
@@ -450,7 +456,7 @@ def _first_entry(fvals, fint, fgeo, k, sx, sy, sz, qx, qy, qz, radius):
     return lo
 
 
-@nb.njit(cache=True, fastmath=FASTMATH, error_model="numpy", **NO_REFCOUNT)
+@nb.njit(cache=PART_CACHE, fastmath=FASTMATH, error_model="numpy", **NO_REFCOUNT)
 def _collide_one(p, prev, i, k, radius, fvals, fint, fgeo, rot_s, tr_s, rot_e, tr_e, near):
     """Push particle i out of collider k's material; 1 if it had tunnelled into a wall.
 
@@ -530,7 +536,7 @@ def _collide_one(p, prev, i, k, radius, fvals, fint, fgeo, rot_s, tr_s, rot_e, t
     return tunnelled
 
 
-@nb.njit(cache=True, fastmath=FASTMATH, error_model="numpy", **NO_REFCOUNT)
+@nb.njit(cache=PART_CACHE, fastmath=FASTMATH, error_model="numpy", **NO_REFCOUNT)
 def _wall_term(i, p, wall, floor, has_floor, h, wall_table, fvals, fint, fgeo, rot_e, tr_e,
                near):  # fmt: skip
     """The density the nearest wall stands in for at particle i, and its gradient.
@@ -652,7 +658,9 @@ def _pass_lambda(src, nbr, nbr_count, pair_g, pair_s, lam, wall_on, wall, h, c_p
                     eps)  # fmt: skip
 
 
-@nb.njit(cache=True, fastmath=FASTMATH | {"reassoc"}, error_model="numpy", **NO_REFCOUNT, **NOALIAS)
+@nb.njit(
+    cache=PART_CACHE, fastmath=FASTMATH | {"reassoc"}, error_model="numpy", **NO_REFCOUNT, **NOALIAS
+)
 def _lambda_run(lo, hi, src, nbr, nbr_count, pair_g, pair_s, lam, wall_on, wall, h, c_poly,
                 c_spiky, inv_wdq, scorr, tension, eps):  # fmt: skip
     """The multipliers of particles lo to hi (:func:`_pass_lambda`).
@@ -712,7 +720,7 @@ def _pass_correct(src, dst, nbr, nbr_count, pair_g, pair_s, lam, wall_on, wall, 
                      pair_s, lam, wall_on, wall, omega)  # fmt: skip
 
 
-@nb.njit(cache=True, fastmath=FASTMATH, error_model="numpy", **NO_REFCOUNT, **NOALIAS)
+@nb.njit(cache=PART_CACHE, fastmath=FASTMATH, error_model="numpy", **NO_REFCOUNT, **NOALIAS)
 def _correct_run(lo, hi, src, dst, nbr, nbr_count, pair_g, pair_s, lam, wall_on, wall, omega):
     """Particles lo to hi of :func:`_pass_correct`."""
     for i in range(lo, hi):
@@ -811,7 +819,7 @@ def _pass_finish(x, v, vn, p, nbr, nbr_count, h, xsph, floor, has_floor, radius,
                     xsph, floor, has_floor, radius, decay)  # fmt: skip
 
 
-@nb.njit(cache=True, fastmath=FASTMATH, error_model="numpy", **NO_REFCOUNT, **NOALIAS)
+@nb.njit(cache=PART_CACHE, fastmath=FASTMATH, error_model="numpy", **NO_REFCOUNT, **NOALIAS)
 def _finish_run(lo, hi, x, v, vn, p, nbr, nbr_count, h, xsph, floor, has_floor, radius, decay):
     """Particles lo to hi of :func:`_pass_finish`."""
     h2 = h * h
@@ -917,15 +925,20 @@ def _builds(passes: tuple, driver: types.FunctionType) -> dict:
     The serial build runs without numba's runtime (:data:`NO_REFCOUNT`: none of its
     functions allocates); the parallel loops need it for their scheduling.
     """
-    fast = {"cache": True, "fastmath": FASTMATH, "error_model": "numpy", **NOALIAS}
+    fast = {"fastmath": FASTMATH, "error_model": "numpy", **NOALIAS}
+    part = {"cache": PART_CACHE, **fast}
     serial = dict(driver.__globals__)
     parallel = dict(driver.__globals__)
     for f in passes:
-        serial[f.__name__] = nb.njit(**fast, **NO_REFCOUNT)(f)
-        parallel[f.__name__] = nb.njit(**fast, parallel=True)(twin(f, "_parallel", parallel))
+        serial[f.__name__] = nb.njit(**part, **NO_REFCOUNT)(f)
+        parallel[f.__name__] = nb.njit(**part, parallel=True)(twin(f, "_parallel", parallel))
     return {
-        False: nb.njit(**fast, **NO_REFCOUNT)(twin(driver, "_serial", serial)),
-        True: nb.njit(**fast)(twin(driver, "_parallel", parallel)),
+        # nogil: the envs of a vector env step their one-thread fluids in threads of one
+        # process (pour_gym.envs.vector).
+        False: nb.njit(cache=True, nogil=True, **fast, **NO_REFCOUNT)(
+            twin(driver, "_serial", serial)
+        ),
+        True: nb.njit(cache=True, **fast)(twin(driver, "_parallel", parallel)),
     }
 
 

@@ -184,12 +184,10 @@ def start(parallel: bool) -> None:
     covered = {b for h in _helpers for b in h.builds if b in h.done or not h.finished.is_set()}
     missing = tuple(b for b in missing if b not in covered)
     if missing:
-        # Two helpers when the one-thread build is missing: one compiles its walls part while
-        # the other compiles the rest, then the driver: two cores compile the two parts at once.
-        groups = [("walls",), missing] if "serial" in missing else [missing]
+        # A helper per build: two cores compile the two builds at once.
         try:
-            for group in groups:
-                _helpers.append(_Helper(group))
+            for build in missing:
+                _helpers.append(_Helper((build,)))
         except OSError as error:  # no process to start: compile here
             _warn(f"could not start a helper process ({error})")
 

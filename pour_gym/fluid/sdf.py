@@ -54,6 +54,16 @@ def _no_refcount_option() -> dict:
 # The options of every compiled helper that takes arrays and allocates none.
 NO_REFCOUNT = _no_refcount_option()
 
+# Whether the fluid kernel's parts (every function the kernel's drivers call) are kept in
+# numba's on-disk cache on their own: never. Only the drivers are (with their parts linked
+# in). A driver compiled while one of its parts came from the cache links that part as
+# object code, which LLVM cannot inline, and under fast-math the result rounds differently
+# from a driver compiled with the part at hand: the kernel built in two helper processes
+# and the kernel compiled in one gave different particles. Parts compiled with their driver
+# make every build the same, whoever compiled it and whatever was cached before
+# (tests/test_precompile.py).
+PART_CACHE = False
+
 
 @dataclass(frozen=True)
 class SignedDistanceField:
@@ -219,7 +229,7 @@ def _fluid_side(distance: np.ndarray, spacing: float) -> np.ndarray:
     return open_space | (reach + distance <= OPEN_SPACE + spacing)
 
 
-@nb.njit(cache=True, fastmath=FASTMATH)
+@nb.njit(cache=PART_CACHE, fastmath=FASTMATH)
 def _clamp_axis(x, origin, spacing, n):
     """Grid coordinate of x along one axis, clamped inside, and the distance clamped off."""
     u = (x - origin) / spacing
@@ -231,7 +241,7 @@ def _clamp_axis(x, origin, spacing, n):
     return u, 0.0
 
 
-@nb.njit(cache=True, fastmath=FASTMATH, error_model="numpy", **NO_REFCOUNT)
+@nb.njit(cache=PART_CACHE, fastmath=FASTMATH, error_model="numpy", **NO_REFCOUNT)
 def trilinear(values, offset, nx, ny, nz, ox, oy, oz, spacing, x, y, z):
     """Trilinear signed distance and its unit gradient at a point of a field's frame.
 
