@@ -24,10 +24,12 @@ from pour_gym.assets import (
     expand_containers,
     resolve_asset,
 )
+from pour_gym.envs.containers import ContainerStore
 from pour_gym.envs.observations import VECTOR_MODES, parse_obs_mode
 from pour_gym.fluid import precompile
 from pour_gym.fluid.pbf import PBFConfig, default_threads
 from pour_gym.fluid.sdf import SignedDistanceField
+from pour_gym.objects import procedural
 from pour_gym.perception import PERCEPTIONS, perceived_asset
 from pour_gym.sim import Camera, Container, World
 from pour_gym.sim.sensors import SEGMENTS, Body, Sensor, SensorConfig
@@ -108,9 +110,9 @@ class PourGymEnv(gym.Env, EzPickle):
         self._world: World | None = None
         self.perception = perception
         self.scan_seed = int(scan_seed)
-        self._assets: dict[str, LabelledAsset] = {}
-        self._seen: dict[str, LabelledAsset] = {}
-        self._fields: dict[str, SignedDistanceField] = {}
+        # The containers' assets, fields and drawn meshes, for the containers used last (a
+        # vector env gives its envs one store: share_containers).
+        self._store = ContainerStore()
         self._placed: dict[str, Container] = {}
         self._names: dict[str, str] = {}  # role -> the container's spec, as given
         self._viewer = None
@@ -119,7 +121,6 @@ class PourGymEnv(gym.Env, EzPickle):
         self.sensor_config = SensorConfig.of(sensor_config)
         self._sensor: Sensor | None = None
         self._sensor_rng: np.random.Generator | None = None
-        self._meshes: dict[str, tuple[np.ndarray, np.ndarray]] = {}
         self.obs_modes: tuple[str, ...] = ()
         self.obs_spaces: dict[str, spaces.Box] = {}
         if steps_fluid and fluid == "pbf":
@@ -183,13 +184,26 @@ class PourGymEnv(gym.Env, EzPickle):
 
         A user's container (a mesh file or an asset directory) is loaded here, so that one
         with no opening is refused at construction (:func:`pour_gym.assets.check_open`),
-        however it was labelled; the catalogue's are open.
+        however it was labelled; the catalogue's and the procedural family's are made open
+        (a family's members are labelled when an episode first uses them, or ahead by
+        ``pour-gym build-assets``).
         """
         names = expand_containers(spec)
         for name in names:
-            if name not in CATALOGUE:
+            if name not in CATALOGUE and not procedural.is_member(name):
                 self.asset(name)
         return names
+
+    def share_containers(self, store: ContainerStore) -> None:
+        """Keep the containers' loaded data in ``store``, shared with other environments.
+
+        A native vector env gives its envs one store, so that a container is loaded once
+        per process. Takes what this environment has loaded so far along.
+        """
+        for name, entry in list(self._store._entries.items()):
+            for kind, value in entry.items():
+                store.get(name, kind, lambda value=value: value)
+        self._store = store
 
     def _choose(self, pool: tuple[str, ...], fixed: str | Path | None) -> str:
         """A container from the pool (``self.np_random``), or the one fixed by options."""
@@ -198,10 +212,8 @@ class PourGymEnv(gym.Env, EzPickle):
         return pool[int(self.np_random.integers(len(pool)))]
 
     def asset(self, name: str) -> LabelledAsset:
-        """The labelled asset of a container (loaded once per environment)."""
-        if name not in self._assets:
-            self._assets[name] = check_open(resolve_asset(name), name)
-        return self._assets[name]
+        """The labelled asset of a container (kept while it is among those used last)."""
+        return self._store.get(name, "asset", lambda: check_open(resolve_asset(name), name))
 
     def seen(self, name: str) -> LabelledAsset:
         """The container as the observation knows it.
@@ -214,15 +226,14 @@ class PourGymEnv(gym.Env, EzPickle):
         """
         if self.perception == "true":
             return self.asset(name)
-        if name not in self._seen:
-            self._seen[name] = perceived_asset(self.asset(name), self.scan_seed)
-        return self._seen[name]
+        return self._store.get(
+            name, "seen", lambda: perceived_asset(self.asset(name), self.scan_seed)
+        )
 
     def _load(self, name: str) -> tuple[LabelledAsset, SignedDistanceField]:
-        """The asset and its signed-distance field (computed once per environment)."""
-        if name not in self._fields:
-            self._fields[name] = container_field(self.asset(name))
-        return self.asset(name), self._fields[name]
+        """The asset and its signed-distance field (computed once, then from the disk cache)."""
+        asset = self.asset(name)
+        return asset, self._store.get(name, "field", lambda: container_field(asset))
 
     @property
     def world(self) -> World:
@@ -364,9 +375,7 @@ class PourGymEnv(gym.Env, EzPickle):
     def _drawn_mesh(self, role: str) -> tuple[np.ndarray, np.ndarray]:
         """The mesh of a role's container as the sensor draws it (made once)."""
         name = self._names[role]
-        if name not in self._meshes:
-            self._meshes[name] = self.sensor.mesh(self.asset(name).mesh)
-        return self._meshes[name]
+        return self._store.get(name, "drawn", lambda: self.sensor.mesh(self.asset(name).mesh))
 
     def _show_scene(self) -> None:
         """Make the world show the episode before a picture.

@@ -7,6 +7,7 @@ bad actions, the soak) run over every entry with its ``quick`` arguments.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
@@ -84,12 +85,20 @@ ENV_IDS: tuple[str, ...] = tuple(e.id for e in ENVS)
 
 
 def register_envs() -> None:
-    """Register every entry of :data:`ENVS` with Gymnasium (once)."""
+    """Register every entry of :data:`ENVS` with Gymnasium (once).
+
+    Each id's ``vector_entry_point`` is the native vector env
+    (:class:`~pour_gym.envs.vector.PourVectorEnv`): ``gym.make_vec(id, num_envs=N)``
+    steps N envs in threads of this process.
+    """
+    from pour_gym.envs.vector import PourVectorEnv
+
     for e in ENVS:
         if e.id not in registry:
             register(
                 id=e.id,
                 entry_point=e.entry_point,
+                vector_entry_point=functools.partial(PourVectorEnv, e.id),
                 max_episode_steps=e.max_episode_steps,
                 kwargs=dict(e.kwargs),
             )

@@ -73,6 +73,16 @@ class TrainConfig:
     out: str = field(
         default="", metadata=_doc("run directory (default runs/<env>_<algo>_<objects>_...)")
     )
+    n_envs: int = field(
+        default=0, metadata=_doc("environments stepped side by side (0: the recipe's n_envs)")
+    )
+    vec: str = field(
+        default="native",
+        metadata=_doc(
+            "how they are stepped: native (threads of this process), subproc (a worker "
+            "process each) or dummy (one after the other)"
+        ),
+    )
     checkpoint_every: int = field(default=5_000, metadata=_doc("steps between checkpoints"))
     eval_objects: str = field(default="all", metadata=_doc("containers to evaluate on"))
     eval_episodes: int = field(default=5, metadata=_doc("evaluation episodes per container"))
@@ -148,6 +158,7 @@ def config_parser(
         kind = json_object if isinstance(default, dict) else type(default)
         choices = list(ALGORITHMS) if f.name == "algo" else None
         choices = list(OBS_MODES) if f.name == "obs_mode" else choices
+        choices = ["native", "subproc", "dummy"] if f.name == "vec" else choices
         p.add_argument(flag, type=kind, default=default, choices=choices, help=f.metadata["doc"])
     if parser is None or "json" not in {a.dest for a in p._actions}:
         p.add_argument("--json", action="store_true", help="print the evaluation as JSON")

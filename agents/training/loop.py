@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import dataclasses
-import functools
 import json
 import shutil
 import time
@@ -26,8 +25,9 @@ from pour_gym.agents.training.runs import (
     load_run,
     save_normaliser,
 )
+from pour_gym.agents.training.vector import training_vec_env
 from pour_gym.assets import expand_containers
-from pour_gym.envs import ENV_IDS, entry, make, task_of
+from pour_gym.envs import ENV_IDS, entry, task_of
 from pour_gym.errors import InputError
 
 
@@ -41,22 +41,17 @@ def env_arguments(config: TrainConfig, recipe: Recipe) -> dict:
 
 
 def make_training_env(config: TrainConfig, recipe: Recipe, env_kwargs: dict):
-    """The vector env: workers when ``n_envs > 1``, wrapped and normalised as the recipe says.
+    """The vector env (``config.vec``), wrapped and normalised as the recipe says.
 
-    Every worker makes its env through :func:`pour_gym.envs.make`, which registers the
-    ids in the worker's own process (a worker started from a Ray trial has not imported
-    pour-gym).
+    A worker process of ``--vec subproc`` makes its env through
+    :func:`pour_gym.envs.make`, which registers the ids in the worker's own process (a
+    worker started from a Ray trial has not imported pour-gym).
     """
-    from stable_baselines3.common.env_util import make_vec_env
-    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNormalize
+    from stable_baselines3.common.vec_env import VecNormalize
 
-    vector = {"vec_env_cls": DummyVecEnv}
-    if recipe.n_envs > 1:
-        vector = {"vec_env_cls": SubprocVecEnv, "vec_env_kwargs": {"start_method": "forkserver"}}
-    venv = make_vec_env(
-        functools.partial(make, config.env), n_envs=recipe.n_envs, seed=config.seed,
-        env_kwargs=env_kwargs, wrapper_class=recipe.wrapper(), **vector,
-    )  # fmt: skip
+    venv = training_vec_env(
+        config.env, recipe.n_envs, config.seed, env_kwargs, recipe.wrapper(), config.vec
+    )
     if recipe.normalize:
         venv = VecNormalize(venv, **recipe.normalize)
     return venv
@@ -93,6 +88,10 @@ def train(config: TrainConfig) -> dict:
             f"unknown environment {config.env!r}; use one of {', '.join(ENV_IDS)}"
         ) from None
     recipe = load_recipe(config.env, config.algo, cls, config.overrides, config.recipe)
+    if config.n_envs:
+        if config.n_envs < 0:
+            raise InputError(f"--n-envs must be positive (0: the recipe's), not {config.n_envs}")
+        recipe = dataclasses.replace(recipe, n_envs=config.n_envs)
     if recipe.stochastic_eval:  # the recipe's way to score its policy; recorded as the run's
         config = dataclasses.replace(config, stochastic_eval=True)
     params = dict(recipe.hyperparameters)

@@ -28,7 +28,7 @@ from pour_gym.errors import InputError, SimulationError
 from pour_gym.fluid.bullet import BodyCollider, BulletFluid, convex_parts
 from pour_gym.fluid.pbf import Collider, PBFConfig, PBFluid, quaternion, wall_distance
 from pour_gym.fluid.sdf import SignedDistanceField, build_sdf
-from pour_gym.io.cache import cache_dir
+from pour_gym.io.cache import cache_dir, mesh_key
 from pour_gym.io.stdio import redirect_stdout_fd
 from pour_gym.sim.camera import Camera, render
 from pour_gym.sim.census import Census, take_census
@@ -68,16 +68,12 @@ def container_field(asset: LabelledAsset, cache: str | Path | None = None) -> Si
     )
 
 
-def mesh_body(
-    client, mesh, position, rotation, color, convex: Path | None = None, collide: bool = True
-) -> int:
-    """A static pybullet body with the mesh as its visual.
+def mesh_shapes(client, mesh, color, convex: Path | None = None, collide: bool = True):
+    """A mesh's pybullet (collision, visual) shapes, for any number of bodies.
 
     Args:
         client: a pybullet client.
         mesh: the trimesh, in m, in the body's frame.
-        position: (3,) body position, m.
-        rotation: (3, 3) body rotation.
         color: RGBA.
         convex: an OBJ of convex pieces to collide as (see
             :func:`pour_gym.fluid.bullet.convex_parts`); the concave triangle mesh if None.
@@ -85,7 +81,7 @@ def mesh_body(
             fields, so its worlds skip the cost of building one).
 
     Returns:
-        The body's id; move it with ``resetBasePositionAndOrientation``.
+        ``(collision shape or -1, visual shape)``.
     """
     verts = np.asarray(mesh.vertices, dtype=np.float64).tolist()
     faces = np.asarray(mesh.faces, dtype=np.int64).ravel().tolist()
@@ -103,6 +99,27 @@ def mesh_body(
     visual = client.createVisualShape(
         pybullet.GEOM_MESH, vertices=verts, indices=faces, rgbaColor=color
     )
+    return shape, visual
+
+
+def mesh_body(
+    client, mesh, position, rotation, color, convex: Path | None = None, collide: bool = True
+) -> int:
+    """A static pybullet body with the mesh as its visual (shapes as :func:`mesh_shapes`).
+
+    Args:
+        client: a pybullet client.
+        mesh: the trimesh, in m, in the body's frame.
+        position: (3,) body position, m.
+        rotation: (3, 3) body rotation.
+        color: RGBA.
+        convex: convex pieces to collide as, or None (:func:`mesh_shapes`).
+        collide: give the body a collision shape at all.
+
+    Returns:
+        The body's id; move it with ``resetBasePositionAndOrientation``.
+    """
+    shape, visual = mesh_shapes(client, mesh, color, convex, collide)
     quat = Rotation.from_matrix(rotation).as_quat().tolist()
     return client.createMultiBody(0.0, shape, visual, np.asarray(position).tolist(), quat)
 
@@ -114,18 +131,21 @@ class Container:
     Attributes:
         index: its position in :attr:`World.containers` (and in a census).
         asset: the labelled asset (mesh and geometry in the container's frame).
-        body: the pybullet body.
+        body: the pybullet body, or None while the world has no pybullet client (a PBF
+            world makes its client and bodies when first asked for a picture).
         sdf: its signed-distance field, in its frame.
         collider: the fluid's handle on it; holds the current pose.
+        color: RGBA for pictures.
         lattice: its cavity's fill lattice at the world's spacing (kept after the first
             fill, so that refilling every episode costs no recomputation).
     """
 
     index: int
     asset: LabelledAsset
-    body: int
+    body: int | None
     sdf: SignedDistanceField
     collider: Collider | BodyCollider
+    color: tuple[float, float, float, float] = CUP_COLORS[0]
     lattice: np.ndarray | None = None
 
     @property
@@ -145,6 +165,12 @@ class Container:
 
 class World:
     """A table, containers and a particle fluid in a pybullet client of their own.
+
+    The PBF fluid collides through the containers' fields, not through pybullet, so a PBF
+    world without ``solid`` makes its pybullet client only when something needs it (a
+    picture, :attr:`client`): an environment that trains headless never pays for one (30
+    MB and a body per container met). A container's pybullet shapes are made once per
+    world and reused when it is placed again.
 
     Args:
         fluid: ``"pbf"`` or ``"bullet"``.
@@ -175,29 +201,63 @@ class World:
         self.solid = bool(solid)
         self.config = config or PBFConfig()
         self.sdf_cache = Path(sdf_cache) if sdf_cache is not None else cache_dir("sdf")
-        with redirect_stdout_fd():
-            self.client = BulletClient(connection_mode=pybullet.DIRECT)
-        self.client.setGravity(0.0, 0.0, -9.81)
+        self._client: BulletClient | None = None
+        # A container's (collision, visual) shapes by mesh and colour: made once per world.
+        self._shapes: dict[tuple, tuple[int, int]] = {}
         self.containers: list[Container] = []
         self.table = table
-        self.table_body: int | None = None  # the table's pybullet body
-        if table:
-            shape = self.client.createCollisionShape(pybullet.GEOM_PLANE)
-            visual = self.client.createVisualShape(
-                pybullet.GEOM_BOX,
-                halfExtents=[0.5, 0.5, 0.005],
-                rgbaColor=TABLE_COLOR,
-                visualFramePosition=[0.0, 0.0, -0.005],
-            )
-            self.table_body = self.client.createMultiBody(0.0, shape, visual)
+        self.table_body: int | None = None  # the table's pybullet body (once there is a client)
+        self._closed = False
         empty = np.empty((0, 3))
         floor = 0.0 if table else None
         self.fluid: PBFluid | BulletFluid
         if fluid == "pbf":
             self.fluid = PBFluid(empty, self.config, floor=floor, num_threads=num_threads)
+            if self.solid:
+                self.client  # noqa: B018 (something else collides with the bodies)
         else:
             self.fluid = BulletFluid(self.client, empty, self.config)
-        self._closed = False
+
+    @property
+    def client(self) -> BulletClient:
+        """The world's pybullet client, with the table and a body per container.
+
+        Made at first use in a PBF world (the containers' bodies are then made where the
+        containers are); from the start in a ``bullet`` or ``solid`` one.
+        """
+        if self._client is None:
+            self._check_open()
+            with redirect_stdout_fd():
+                self._client = BulletClient(connection_mode=pybullet.DIRECT)
+            self._client.setGravity(0.0, 0.0, -9.81)
+            if self.table:
+                shape = self._client.createCollisionShape(pybullet.GEOM_PLANE)
+                visual = self._client.createVisualShape(
+                    pybullet.GEOM_BOX,
+                    halfExtents=[0.5, 0.5, 0.005],
+                    rgbaColor=TABLE_COLOR,
+                    visualFramePosition=[0.0, 0.0, -0.005],
+                )
+                self.table_body = self._client.createMultiBody(0.0, shape, visual)
+            for c in self.containers:
+                c.body = self._body(c.asset, c.translation, c.rotation, c.color)
+        return self._client
+
+    def _body(self, asset: LabelledAsset, position, rotation, color) -> int:
+        """A pybullet body for a container (its shapes made once per world and colour)."""
+        client = self.client
+        bullet = isinstance(self.fluid, BulletFluid)
+        collide = self.solid or bullet
+        key = (mesh_key(asset.mesh), tuple(color), collide)
+        if key not in self._shapes:
+            convex = convex_parts(client, asset.mesh, self.sdf_cache) if collide else None
+            self._shapes[key] = mesh_shapes(client, asset.mesh, color, convex, collide)
+        shape, visual = self._shapes[key]
+        quat = Rotation.from_matrix(rotation).as_quat().tolist()
+        body = client.createMultiBody(0.0, shape, visual, np.asarray(position).tolist(), quat)
+        if bullet:
+            client.changeDynamics(body, -1, lateralFriction=self.fluid.friction)
+        return body
 
     # ------------------------------------------------------------------ containers
     def add_container(
@@ -225,30 +285,20 @@ class World:
         if sdf is None:
             sdf = container_field(asset, self.sdf_cache)
         rot, pos = as_rotation(rotation), np.asarray(position, dtype=np.float64)
-        convex = None
-        if self.solid or isinstance(self.fluid, BulletFluid):
-            convex = convex_parts(self.client, asset.mesh, self.sdf_cache)
-        body = mesh_body(
-            self.client,
-            asset.mesh,
-            pos,
-            rot,
-            color or CUP_COLORS[len(self.containers) % len(CUP_COLORS)],
-            convex,
-            collide=convex is not None,
-        )
+        color = color or CUP_COLORS[len(self.containers) % len(CUP_COLORS)]
+        body = None if self._client is None else self._body(asset, pos, rot, color)
         if isinstance(self.fluid, PBFluid):
             collider = self.fluid.add_collider(sdf, rot, pos)
         else:
-            self.client.changeDynamics(body, -1, lateralFriction=self.fluid.friction)
             collider = self.fluid.add_collider(body, rot, pos)
-        c = Container(len(self.containers), asset, body, sdf, collider)
+        c = Container(len(self.containers), asset, body, sdf, collider, color)
         self.containers.append(c)
         return c
 
     def remove_container(self, container: Container) -> None:
         """Take a container out of the world (the others are renumbered in order)."""
-        self.client.removeBody(container.body)
+        if container.body is not None:
+            self.client.removeBody(container.body)
         self.fluid.colliders.remove(container.collider)
         self.containers.remove(container)
         for k, c in enumerate(self.containers):
@@ -277,8 +327,11 @@ class World:
         self.set_pose(container, position, rotation)
         c = container.collider
         c.prev_rotation, c.prev_translation = c.rotation.copy(), c.translation.copy()
-        quat = Rotation.from_matrix(c.rotation).as_quat().tolist()
-        self.client.resetBasePositionAndOrientation(container.body, c.translation.tolist(), quat)
+        if container.body is not None:
+            quat = Rotation.from_matrix(c.rotation).as_quat().tolist()
+            self.client.resetBasePositionAndOrientation(
+                container.body, c.translation.tolist(), quat
+            )
 
     # ------------------------------------------------------------------ fluid
     @property
@@ -342,7 +395,7 @@ class World:
         """
         self._check_open()
         n_sub = self.fluid.step(dt)
-        if isinstance(self.fluid, PBFluid):
+        if isinstance(self.fluid, PBFluid) and self._client is not None:
             # The bodies follow for rendering (the fluid collides with the fields). The
             # quaternion by Shepperd's method: a SciPy Rotation object costs more than the
             # rest of the step's bookkeeping.
@@ -402,7 +455,9 @@ class World:
     def close(self) -> None:
         """Disconnect the pybullet client; safe to call twice."""
         if not self._closed:
-            self.client.disconnect()
+            if self._client is not None:
+                self._client.disconnect()
+                self._client = None
             self._closed = True
 
     def _check_open(self) -> None:

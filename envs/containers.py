@@ -1,0 +1,78 @@
+"""What an environment keeps in memory of the containers it has met, and for how long.
+
+An environment over a family of containers (``objects="procedural:train"``, 200 members)
+meets a new pair of them at almost every reset. Each container's labelled asset and
+signed-distance field take 10-30 MB; kept for good, they grew one process past 15 GB in a
+soak. A :class:`ContainerStore` keeps them for the containers used last, a bounded number,
+and loads an evicted one again from the on-disk caches when it is met again (tens of
+milliseconds: nothing is recomputed; ``pour-gym build-assets`` fills those caches ahead
+of a run). The envs of a native vector env share one store, so a container costs its
+memory once per process, not once per env.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections import OrderedDict
+from collections.abc import Callable
+from typing import TypeVar
+
+T = TypeVar("T")
+
+# Containers an environment keeps loaded by default: an episode uses two, and a catalogue
+# split (at most 12 containers) stays loaded whole.
+KEPT = 16
+
+
+class ContainerStore:
+    """Loaded data of the containers used last, by container name and kind.
+
+    Thread-safe: the envs of a vector env reset in threads of one process.
+
+    Args:
+        capacity: containers kept at most (all their kinds together); the one used least
+            recently goes first.
+    """
+
+    def __init__(self, capacity: int = KEPT):
+        if int(capacity) < 1:
+            raise ValueError(f"a container store keeps at least one container, not {capacity}")
+        self.capacity = int(capacity)
+        self._entries: OrderedDict[str, dict[str, object]] = OrderedDict()
+        self._lock = threading.Lock()
+
+    def get(self, name: str, kind: str, load: Callable[[], T]) -> T:
+        """The ``kind`` of container ``name`` (``load()`` makes it when it is not kept).
+
+        Args:
+            name: the container's spec, as the environment was given it.
+            kind: what of it (``"asset"``, ``"field"``, ...).
+            load: makes the value; called outside the lock (loads may take seconds), so two
+                threads may both load a value the first time: either result is kept.
+        """
+        with self._lock:
+            entry = self._entries.get(name)
+            if entry is not None:
+                self._entries.move_to_end(name)
+                if kind in entry:
+                    return entry[kind]  # type: ignore[return-value]
+        value = load()
+        with self._lock:
+            entry = self._entries.setdefault(name, {})
+            entry.setdefault(kind, value)
+            self._entries.move_to_end(name)
+            while len(self._entries) > self.capacity:
+                self._entries.popitem(last=False)
+            return entry[kind]  # type: ignore[return-value]
+
+    def __len__(self) -> int:
+        """Containers kept."""
+        return len(self._entries)
+
+    def __contains__(self, name: str) -> bool:
+        return name in self._entries
+
+    def clear(self) -> None:
+        """Drop everything kept."""
+        with self._lock:
+            self._entries.clear()
