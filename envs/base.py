@@ -24,7 +24,7 @@ from pour_gym.assets import (
     expand_containers,
     resolve_asset,
 )
-from pour_gym.envs.containers import ContainerStore
+from pour_gym.envs.containers import ContainerStore, release
 from pour_gym.envs.observations import VECTOR_MODES, parse_obs_mode
 from pour_gym.fluid import precompile
 from pour_gym.fluid.pbf import PBFConfig, default_threads
@@ -422,6 +422,10 @@ class PourGymEnv(gym.Env, EzPickle):
             self._world = None
             self._placed = {}
             self._names = {}
+        # The containers' data goes with the env (a shared store stays with the others), so
+        # that an env closed but not yet collected holds no meshes or fields.
+        self._store = ContainerStore(1)
+        release()
         if self._viewer is not None:
             import matplotlib.pyplot as plt
 

@@ -11,7 +11,7 @@ from pour_gym.envs.observations import parse_obs_mode, vector_mode
 from pour_gym.envs.task import DROP
 from pour_gym.features import fill_fraction, relative_distance_height
 from pour_gym.fluid.pbf import PBFConfig
-from pour_gym.sim import Camera
+from pour_gym.sim import Camera, Container
 from pour_gym.sim.sensors import SensorConfig
 
 FEATURE_NAMES = ("f1", "f2", "f3")
@@ -149,12 +149,17 @@ class ParticleDropEnv(PourGymEnv):
         self.obs_names = OBS_NAMES[vector] if vector else ()
         self.action_space = spaces.Box(-1.0, 1.0, (1,), np.float32)
 
+    @property
+    def container(self) -> Container:
+        """The episode's container."""
+        return self._placed["container"]
+
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         """Place the container and the fluid; ``options``: container, spawn, fill."""
         super().reset(seed=seed)
         options = self._options(options, {"container", "spawn", "fill"})
         name = self._choose(self.containers, options.get("container"))
-        self.container = self._place({"container": name})["container"]
+        self._place({"container": name})
         self.world.teleport(self.container, np.zeros(3))
         g = self.container.asset.geometry
         rng = self.np_random

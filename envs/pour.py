@@ -13,7 +13,7 @@ from pour_gym.envs.observations import VECTOR_MODES, parse_obs_mode, vector_mode
 from pour_gym.envs.task import POUR
 from pour_gym.features import ContainerGeometry, fluid_features, relative_distance_height
 from pour_gym.fluid.pbf import PBFConfig
-from pour_gym.sim import Camera
+from pour_gym.sim import Camera, Container
 from pour_gym.sim.sensors import SensorConfig
 
 FEATURE_NAMES = (
@@ -393,8 +393,7 @@ class PourEnv(PourGymEnv):
         )
         source = self._choose(self.sources, options.get("source"))
         target = self._choose(self.targets, options.get("target"))
-        placed = self._place({"source": source, "target": target})
-        self.source, self.target = placed["source"], placed["target"]
+        self._place({"source": source, "target": target})
         gs, gt = self.source.asset.geometry, self.target.asset.geometry
         rng = self.np_random
         # The target stands on the table; the source faces it with its lip (handle away).
@@ -492,6 +491,16 @@ class PourEnv(PourGymEnv):
         reward, weighted = self._reward(terms)
         info = self._info(weighted, success)
         return self._observation(), reward, terminated, False, info
+
+    @property
+    def source(self) -> Container:
+        """The episode's source container (held)."""
+        return self._placed["source"]
+
+    @property
+    def target(self) -> Container:
+        """The episode's target container (on the table)."""
+        return self._placed["target"]
 
     # ------------------------------------------------------------------ the source's motion
     def commanded(self, a: np.ndarray) -> tuple[np.ndarray, float]:

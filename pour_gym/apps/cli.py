@@ -180,7 +180,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--envs", help="coldstart: comma-separated env ids (default: every one)")
     p.add_argument(
         "--sections",
-        help="envs: comma-separated parts to run, of pour, vec, rows, sensors (default: all)",
+        help="envs: comma-separated parts to run, of pour, vec, native, memory, rows, sensors "
+        "(default: all)",
     )
 
     p = add("soak", commands.cmd_soak, "random actions over containers: what must never happen")

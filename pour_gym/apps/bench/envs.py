@@ -10,6 +10,7 @@ from tqdm import tqdm
 
 from pour_gym.agents.rollout import rollout
 from pour_gym.agents.scripted import ScriptedPourPolicy
+from pour_gym.apps.bench.vector import bench_memory, bench_native, memory_table, native_table
 from pour_gym.envs import PANDA_POUR_V0, PARTICLE_DROP_V0, POUR_V0, TILT_POUR_V0, make
 from pour_gym.errors import InputError
 from pour_gym.report.tables import markdown_table
@@ -147,7 +148,7 @@ def _pour_realtime(kwargs: dict, episodes: int, seed: int = 0, env_id: str = POU
     return sum(e.steps for e in runs) * env.unwrapped.dt / sum(e.step_seconds for e in runs)
 
 
-ENV_SECTIONS = ("pour", "vec", "rows", "sensors")
+ENV_SECTIONS = ("pour", "vec", "native", "memory", "rows", "sensors")
 
 
 def bench_envs(
@@ -168,6 +169,10 @@ def bench_envs(
       ``subproc_4``, four workers on their own seeds. ``ratios`` are medians of the
       ratios within each run, with the most lockstep allows (``lockstep_bound_...``).
     - ``rows``: the one-step environments alone and vectorised by two (Gymnasium's).
+    - ``native``: the native vector env of 1 to 16 envs against one env on one thread
+      and SubprocVecEnv(2), the same work (:func:`pour_gym.apps.bench.vector.bench_native`).
+    - ``memory``: resident memory of a bare env's process, a worker, each extra native env,
+      and of envs made and closed 50 times (:func:`pour_gym.apps.bench.vector.bench_memory`).
     - ``sensors``: ms per Pour-v0 step in each observation mode (:func:`bench_sensors`).
 
     Args:
@@ -175,7 +180,7 @@ def bench_envs(
         steps: steps per timed run of the vector cases (600: several episodes, so that
             resets and long steps average out as they do in training).
         sections: which of ``pour`` (``pour_v0`` and ``panda_pour_v0``), ``vec`` (``vec``
-            and ``ratios``), ``rows`` and ``sensors`` to run.
+            and ``ratios``), ``native``, ``memory``, ``rows`` and ``sensors`` to run.
 
     Raises:
         InputError: an unknown section.
@@ -185,7 +190,8 @@ def bench_envs(
     unknown = sorted(set(sections) - set(ENV_SECTIONS))
     if unknown:
         raise InputError(f"unknown bench envs sections {unknown}; choose from {ENV_SECTIONS}")
-    counts = {"pour": 3, "vec": 4, "rows": 6, "sensors": len(SENSOR_CASES)}
+    counts = {"pour": 3, "vec": 4, "native": 1, "memory": 0, "rows": 6}
+    counts["sensors"] = len(SENSOR_CASES)
     bar = tqdm(total=sum(counts[c] for c in sections) * repeats, desc="bench envs", file=sys.stderr)
     out: dict = {}
 
@@ -250,6 +256,10 @@ def bench_envs(
                 run["lockstep_bound"]["one_thread"] for run in runs
             )),
         }  # fmt: skip
+    if "native" in sections:
+        out["native"] = bench_native(repeats, bar=bar)
+    if "memory" in sections:
+        out["memory"] = bench_memory()
     if "rows" in sections:
         rows = []
         for env_id in (PARTICLE_DROP_V0, TILT_POUR_V0):
@@ -359,6 +369,10 @@ def envs_table(result: dict) -> str:
             f"{q['lockstep_bound_over_one_thread']:.2f}x over one thread on this work.",
             "",
         ]
+    if "native" in result:
+        parts += [native_table(result["native"]), ""]
+    if "memory" in result:
+        parts += [memory_table(result["memory"]), ""]
     if "rows" in result:
         one_step = [[r["env"], r["mode"], f"{r['steps_per_s']:.1f}"] for r in result["rows"]]
         parts += [
