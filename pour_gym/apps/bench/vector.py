@@ -235,8 +235,9 @@ def bench_memory(rounds: int = 50, envs: int = 8) -> dict:
     - ``native_1`` / ``native_<envs>``: a native vector env of 1 and ``envs`` envs after
       50 steps; ``per_extra_env``: the difference over ``envs - 1``;
     - ``rounds``: a process that makes a Pour-v0 env over the test split, resets it, steps
-      it 5 times and closes it, ``rounds`` times: its memory after the first round and
-      after the last, and the growth between.
+      it 5 times and closes it, ``rounds`` times: its memory after each round (``each``),
+      the median over the first ten rounds and over the last ten, and the growth between
+      (a round's memory depends on the two containers it drew: the medians smooth that).
     """
     bare = _measure(_BARE)["rss"]
     worker = _measure(_WORKER)["rss"]
@@ -252,9 +253,10 @@ def bench_memory(rounds: int = 50, envs: int = 8) -> dict:
         "per_extra_env": (many - one) / (envs - 1),
         "rounds": {
             "count": rounds,
-            "first": seen[0],
-            "last": seen[-1],
-            "growth": seen[-1] - seen[0],
+            "first": float(statistics.median(seen[:10])),
+            "last": float(statistics.median(seen[-10:])),
+            "growth": float(statistics.median(seen[-10:]) - statistics.median(seen[:10])),
+            "each": seen,
         },
     }
 
@@ -268,7 +270,7 @@ def memory_table(result: dict) -> str:
         ["a native vector env of 1 env", f"{result['native_1']:.0f}"],
         [f"a native vector env of {n} envs", f"{result[f'native_{n}']:.0f}"],
         ["each extra env of a native vector env", f"{result['per_extra_env']:.1f}"],
-        [f"make, reset, 5 steps, close: after round 1 / round {r['count']}",
-         f"{r['first']:.0f} / {r['last']:.0f} (+{r['growth']:.1f})"],
+        [f"make, reset, 5 steps, close, {r['count']} times: rounds 1-10 / the last 10 (medians)",
+         f"{r['first']:.0f} / {r['last']:.0f} ({r['growth']:+.1f})"],
     ]  # fmt: skip
     return markdown_table(["process", "resident memory, MB"], rows, align="lr")
