@@ -32,5 +32,11 @@ meshes, small dataclasses); a package imports only from those below it
 
 __version__ = "0.1.0"
 
+# POUR_GYM_CPU pins the processor numba compiles for: set before any compiled function is
+# defined (pour_gym.fluid.target).
+from pour_gym.fluid.target import pinned_target
+
+pinned_target()
+
 # Importing the package registers the PourGym/ environments with Gymnasium.
-import pour_gym.envs  # noqa: F401
+import pour_gym.envs  # noqa: E402, F401

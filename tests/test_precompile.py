@@ -118,3 +118,21 @@ def test_every_build_of_the_kernel_pours_the_same_particles(tmp_path):
     assert helpers[0] == helpers[1], "one thread and two threads poured differently"
     assert in_process[:2] == helpers[:2], "the helpers' build and the in-process build differ"
     assert cached[:2] == helpers[:2], "the cached build differs from the compiled one"
+
+
+def test_pour_gym_cpu_pins_the_processor_numba_compiles_for():
+    """POUR_GYM_CPU names the processor every compiled function targets (its features
+    alone, none of the host's); set after numba compiled something, it warns instead."""
+    script = (
+        "import warnings; warnings.simplefilter('error')\n"
+        "import pour_gym\n"
+        "from numba.core.registry import cpu_target\n"
+        "print(*cpu_target.target_context.codegen().magic_tuple()[1:], sep='|')\n"
+    )
+    env = {**os.environ, "POUR_GYM_CPU": "x86-64-v2"}
+    done = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.strip() == "x86-64-v2|"
+    late = "import numba\nnumba.njit(lambda x: x)(1)\n" + script.replace("'error'", "'always'")
+    done = subprocess.run([sys.executable, "-c", late], env=env, capture_output=True, text=True)
+    assert "POUR_GYM_CPU=x86-64-v2 cannot take effect" in done.stderr

@@ -157,11 +157,24 @@ def build_parser() -> argparse.ArgumentParser:
     )
 
     p = add(
-        "build-assets", commands.cmd_build_assets, "label every catalogue container into assets/"
+        "build-assets",
+        commands.cmd_build_assets,
+        "label every catalogue container into assets/, or (--objects) make any containers "
+        "ready ahead of a run: labelled and their fields cached, in parallel",
     )
     p.add_argument("--source", default="red_cup")
     p.add_argument("--method", choices=["best", "thesis"], default="best")
     p.add_argument("--out", help="folder (default: the packaged assets folder)")
+    p.add_argument(
+        "--objects",
+        help="containers to make ready in the user cache (a family such as procedural:train, "
+        "a split, names, files) instead of the packaged catalogue",
+    )
+    p.add_argument("--jobs", type=int, help="--objects: processes (default: one per core)")
+    p.add_argument(
+        "--perceive", action="store_true", help="--objects: also as perception='scan' sees them"
+    )
+    p.add_argument("--scan-seed", type=int, default=0, help="--perceive: the scans' noise seed")
 
     p = add("bench", commands.cmd_bench, "benchmarks (medians of repeated runs)")
     p.add_argument(

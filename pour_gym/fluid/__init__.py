@@ -5,16 +5,22 @@ fork after it) or on several (numba's parallel loops; see
 :func:`pour_gym.fluid.pbf.default_threads`), on the ``tbb`` wheel's TBB, which survives
 ``fork()`` (:mod:`pour_gym.io.numba_threads`). Where numba runs them on GNU OpenMP instead
 (no tbb wheel, or the user's choice), a child forked after them runs the one-thread build.
+``POUR_GYM_CPU`` pins the processor the kernel is compiled for
+(:mod:`pour_gym.fluid.target`), for episodes that agree across machines.
 """
 
+from pour_gym.fluid.target import pinned_target
 from pour_gym.io.numba_threads import use_wheel_tbb
 
 TBB_LIBRARY = use_wheel_tbb()
+# POUR_GYM_CPU: the processor numba compiles for, set before anything is compiled.
+CPU_TARGET = pinned_target()
 
 from pour_gym.fluid.pbf import PBFConfig, PBFluid, default_threads  # noqa: E402
 from pour_gym.fluid.sdf import SignedDistanceField, build_sdf  # noqa: E402
 
 __all__ = [
+    "CPU_TARGET",
     "TBB_LIBRARY",
     "PBFConfig",
     "PBFluid",

@@ -140,12 +140,13 @@ def _key() -> str:
     digest = hashlib.sha256()
     for name in ("pbf.py", "sdf.py"):
         digest.update((here / name).read_bytes())
+    features = nb.config.CPU_FEATURES  # numba's target: the host's, or POUR_GYM_CPU's
     for part in (
         nb.__version__,
         sys.version,
         platform.machine(),
-        llvm.get_host_cpu_name(),
-        llvm.get_host_cpu_features().flatten(),
+        nb.config.CPU_NAME or llvm.get_host_cpu_name(),
+        llvm.get_host_cpu_features().flatten() if features is None else features,
     ):
         digest.update(str(part).encode())
     return digest.hexdigest()[:16]
