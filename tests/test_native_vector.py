@@ -175,8 +175,9 @@ def test_the_sb3_adapter_steps_what_sb3s_dummy_vec_env_steps():
     assert np.array_equal(native[0], dummy[0])
     assert sum(int(row[2].sum()) for row in native[1:]) == 4, "two episodes per env ended"
     for a, b in zip(native[1:], dummy[1:], strict=True):
+        assert a[1].dtype == np.float64  # SubprocVecEnv's; DummyVecEnv's are float32
         for x, y in zip(a[:3], b[:3], strict=True):
-            assert np.array_equal(x, y)
+            assert np.array_equal(x.astype(y.dtype), y)
         for x, y in zip(a[3], b[3], strict=True):
             assert (x is None and y is None) or np.array_equal(x, y)
         assert a[4] == b[4]

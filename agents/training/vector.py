@@ -82,7 +82,9 @@ class NativeVecEnv(VecEnv):
     def step_wait(self):
         """Step every env: observations, rewards, dones and infos, as SB3 has them."""
         results = self.vector.step_envs(self._actions)
-        rewards = np.array([r[1] for r in results], dtype=np.float32)
+        # float64, as SubprocVecEnv's (DummyVecEnv's are float32): VecNormalize's return
+        # statistics then match a SubprocVecEnv run's bit for bit.
+        rewards = np.array([r[1] for r in results], dtype=np.float64)
         dones = np.array([r[2] or r[3] for r in results], dtype=bool)
         infos = []
         for i, (_, _, terminated, truncated, info, final) in enumerate(results):
