@@ -22,6 +22,7 @@ Semantics are Gymnasium 1.x's (:class:`gymnasium.vector.SyncVectorEnv`'s): batch
 from __future__ import annotations
 
 import copy
+import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any
@@ -129,6 +130,7 @@ class PourVectorEnv(VectorEnv):
             self.single_observation_space, n=self.num_envs, fn=np.zeros
         )
         self._ended = np.zeros(self.num_envs, dtype=bool)  # ended at the last step
+        self._seconds = np.zeros(self.num_envs)  # each env's last step, s (for the order)
         self._pool = ThreadPoolExecutor(self.num_threads, thread_name_prefix="pour-gym env")
 
     # ------------------------------------------------------------------ episodes
@@ -222,6 +224,13 @@ class PourVectorEnv(VectorEnv):
         return results
 
     def _step_one(self, i: int, action) -> Result:
+        start = time.perf_counter()
+        try:
+            return self._advance_one(i, action)
+        finally:
+            self._seconds[i] = time.perf_counter() - start
+
+    def _advance_one(self, i: int, action) -> Result:
         env = self.envs[i]
         if self.autoreset_mode == AutoresetMode.NEXT_STEP and self._ended[i]:
             obs, info = env.reset()
@@ -234,11 +243,18 @@ class PourVectorEnv(VectorEnv):
         return obs, float(reward), bool(terminated), bool(truncated), info, final
 
     def _map(self, work, indices) -> list:
-        """``work(i)`` for each index, in the pool (in order; an exception is raised here)."""
+        """``work(i)`` for each index, in the pool; the results in the order of ``indices``.
+
+        The envs whose last step took longest start first (longest processing time first):
+        a vector step ends when its last env does, and a long step taken last would leave
+        the other threads idle meanwhile. An exception in an env is raised here.
+        """
         indices = list(indices)
         if self.num_threads == 1 or len(indices) == 1:
             return [work(i) for i in indices]
-        return list(self._pool.map(work, indices))
+        first = sorted(indices, key=lambda i: -self._seconds[i])
+        futures = {i: self._pool.submit(work, i) for i in first}
+        return [futures[i].result() for i in indices]
 
     # ------------------------------------------------------------------ observations
     def _set_obs(self, i: int, obs) -> None:
