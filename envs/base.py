@@ -200,9 +200,7 @@ class PourGymEnv(gym.Env, EzPickle):
         A native vector env gives its envs one store, so that a container is loaded once
         per process. Takes what this environment has loaded so far along.
         """
-        for name, entry in list(self._store._entries.items()):
-            for kind, value in entry.items():
-                store.get(name, kind, lambda value=value: value)
+        store.adopt(self._store)
         self._store = store
 
     def _choose(self, pool: tuple[str, ...], fixed: str | Path | None) -> str:

@@ -23,6 +23,9 @@ T = TypeVar("T")
 # Containers an environment keeps loaded by default: an episode uses two, and a catalogue
 # split (at most 12 containers) stays loaded whole.
 KEPT = 16
+# Dropped containers between two collections of their garbage (release): about 25 MB each
+# waits for it, and a collection takes some 40 ms with an env's objects, under Python's lock.
+COLLECT_EVERY = 8
 
 
 class ContainerStore:
@@ -41,6 +44,7 @@ class ContainerStore:
         self.capacity = int(capacity)
         self._entries: OrderedDict[str, dict[str, object]] = OrderedDict()
         self._lock = threading.Lock()
+        self._dropped = 0  # containers dropped since the last collection
 
     def get(self, name: str, kind: str, load: Callable[[], T]) -> T:
         """The ``kind`` of container ``name`` (``load()`` makes it when it is not kept).
@@ -62,13 +66,24 @@ class ContainerStore:
             entry = self._entries.setdefault(name, {})
             entry.setdefault(kind, value)
             self._entries.move_to_end(name)
-            evicted = len(self._entries) > self.capacity
             while len(self._entries) > self.capacity:
                 self._entries.popitem(last=False)
+                self._dropped += 1
             value = entry[kind]
-        if evicted:
+            collect = self._dropped >= COLLECT_EVERY
+            if collect:
+                self._dropped = 0
+        if collect:
             release()
         return value  # type: ignore[return-value]
+
+    def adopt(self, other: ContainerStore) -> None:
+        """Keep what ``other`` holds too (an env that joins a shared store brings its own)."""
+        with other._lock:
+            entries = [(name, dict(entry)) for name, entry in other._entries.items()]
+        for name, entry in entries:
+            for kind, value in entry.items():
+                self.get(name, kind, lambda value=value: value)
 
     def __len__(self) -> int:
         """Containers kept."""
@@ -89,7 +104,7 @@ def release() -> None:
 
     A trimesh mesh refers to itself (its cache), so a dropped asset's mesh is freed only
     by Python's cycle collector, whose full passes come seldom: an env over a family,
-    dropping a container at most resets, held several hundred MB of such garbage at a
-    time. A full pass takes some 40 ms with an env's objects.
+    dropping a container at most resets, would hold several hundred MB of such garbage at
+    a time. A store collects after every :data:`COLLECT_EVERY` containers it dropped.
     """
     gc.collect()

@@ -195,5 +195,8 @@ def test_a_store_keeps_the_containers_used_last():
         assert store.get(name, "asset", lambda name=name: load(name)) == name.upper()
     # "b" was evicted by "c" (least recently used), "a" never.
     assert loads == ["a", "b", "c", "b"] and len(store) == 2 and "c" not in store
+    shared = ContainerStore(capacity=4)
+    shared.adopt(store)  # an env joining a vector env's store brings what it loaded
+    assert shared.get("a", "asset", lambda: load("never")) == "A" and len(shared) == 2
     with pytest.raises(ValueError, match="at least one"):
         ContainerStore(0)
