@@ -193,8 +193,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--envs", help="coldstart: comma-separated env ids (default: every one)")
     p.add_argument(
         "--sections",
-        help="envs: comma-separated parts to run, of pour, vec, native, memory, rows, sensors "
-        "(default: all)",
+        help="envs: comma-separated parts to run, of pour, vec, native, memory, family, rows, "
+        "sensors (default: all but family, a half-hour memory probe)",
     )
 
     p = add("soak", commands.cmd_soak, "random actions over containers: what must never happen")

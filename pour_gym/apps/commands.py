@@ -344,7 +344,7 @@ def cmd_bench(args: argparse.Namespace) -> Output:
 def _bench(args: argparse.Namespace) -> Output:
     """The benchmark ``args.what`` asks for."""
     from pour_gym.apps.bench import (
-        ENV_SECTIONS,
+        DEFAULT_SECTIONS,
         accuracy_table,
         bench_accuracy,
         bench_coldstart,
@@ -376,7 +376,7 @@ def _bench(args: argparse.Namespace) -> Output:
         result = bench_coldstart(ids)
         return (result, lambda: coldstart_table(result))
     if args.what == "envs":
-        sections = tuple(args.sections.split(",")) if args.sections else ENV_SECTIONS
+        sections = tuple(args.sections.split(",")) if args.sections else DEFAULT_SECTIONS
         result = bench_envs(repeats=args.repeats, sections=sections)
         return (result, lambda: envs_table(result))
     if args.what == "ray":

@@ -13,12 +13,13 @@ median of the ratios within each pair: this machine's speed drifts by 2x over mi
 
 from pour_gym.apps.bench.accuracy import accuracy_table, bench_accuracy
 from pour_gym.apps.bench.coldstart import bench_coldstart, coldstart_table
-from pour_gym.apps.bench.envs import ENV_SECTIONS, bench_envs, envs_table
+from pour_gym.apps.bench.envs import DEFAULT_SECTIONS, ENV_SECTIONS, bench_envs, envs_table
 from pour_gym.apps.bench.fluid import bench_fluid, fluid_table
 from pour_gym.apps.bench.mesh import bench_label, bench_reconstruct, label_table, reconstruct_table
 from pour_gym.apps.bench.ray import bench_ray, ray_table
 
 __all__ = [
+    "DEFAULT_SECTIONS",
     "ENV_SECTIONS",
     "accuracy_table",
     "bench_accuracy",

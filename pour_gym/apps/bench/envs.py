@@ -10,7 +10,14 @@ from tqdm import tqdm
 
 from pour_gym.agents.rollout import rollout
 from pour_gym.agents.scripted import ScriptedPourPolicy
-from pour_gym.apps.bench.vector import bench_memory, bench_native, memory_table, native_table
+from pour_gym.apps.bench.vector import (
+    bench_family_memory,
+    bench_memory,
+    bench_native,
+    family_memory_table,
+    memory_table,
+    native_table,
+)
 from pour_gym.envs import PANDA_POUR_V0, PARTICLE_DROP_V0, POUR_V0, TILT_POUR_V0, make
 from pour_gym.errors import InputError
 from pour_gym.report.tables import markdown_table
@@ -148,11 +155,13 @@ def _pour_realtime(kwargs: dict, episodes: int, seed: int = 0, env_id: str = POU
     return sum(e.steps for e in runs) * env.unwrapped.dt / sum(e.step_seconds for e in runs)
 
 
-ENV_SECTIONS = ("pour", "vec", "native", "memory", "rows", "sensors")
+ENV_SECTIONS = ("pour", "vec", "native", "memory", "family", "rows", "sensors")
+# What runs without --sections: all but the half-hour family probe.
+DEFAULT_SECTIONS = tuple(s for s in ENV_SECTIONS if s != "family")
 
 
 def bench_envs(
-    repeats: int = 3, steps: int = 600, sections: tuple[str, ...] = ENV_SECTIONS
+    repeats: int = 3, steps: int = 600, sections: tuple[str, ...] = DEFAULT_SECTIONS
 ) -> dict:
     """Speed of the environments at their defaults, side by side in one run.
 
@@ -173,6 +182,9 @@ def bench_envs(
       and SubprocVecEnv(2), the same work (:func:`pour_gym.apps.bench.vector.bench_native`).
     - ``memory``: resident memory of a bare env's process, a worker, each extra native env,
       and of envs made and closed 50 times (:func:`pour_gym.apps.bench.vector.bench_memory`).
+    - ``family``: resident memory of one Pour-v1 env over ``procedural:train`` for 1000
+      random-action episodes (about 30 min; not in the default sections;
+      :func:`pour_gym.apps.bench.vector.bench_family_memory`).
     - ``sensors``: ms per Pour-v0 step in each observation mode (:func:`bench_sensors`).
 
     Args:
@@ -180,7 +192,8 @@ def bench_envs(
         steps: steps per timed run of the vector cases (600: several episodes, so that
             resets and long steps average out as they do in training).
         sections: which of ``pour`` (``pour_v0`` and ``panda_pour_v0``), ``vec`` (``vec``
-            and ``ratios``), ``native``, ``memory``, ``rows`` and ``sensors`` to run.
+            and ``ratios``), ``native``, ``memory``, ``family``, ``rows`` and ``sensors``
+            to run.
 
     Raises:
         InputError: an unknown section.
@@ -190,7 +203,7 @@ def bench_envs(
     unknown = sorted(set(sections) - set(ENV_SECTIONS))
     if unknown:
         raise InputError(f"unknown bench envs sections {unknown}; choose from {ENV_SECTIONS}")
-    counts = {"pour": 3, "vec": 4, "native": 1, "memory": 0, "rows": 6}
+    counts = {"pour": 3, "vec": 4, "native": 1, "memory": 0, "family": 0, "rows": 6}
     counts["sensors"] = len(SENSOR_CASES)
     bar = tqdm(total=sum(counts[c] for c in sections) * repeats, desc="bench envs", file=sys.stderr)
     out: dict = {}
@@ -260,6 +273,8 @@ def bench_envs(
         out["native"] = bench_native(repeats, bar=bar)
     if "memory" in sections:
         out["memory"] = bench_memory()
+    if "family" in sections:
+        out["family"] = bench_family_memory()
     if "rows" in sections:
         rows = []
         for env_id in (PARTICLE_DROP_V0, TILT_POUR_V0):
@@ -373,6 +388,8 @@ def envs_table(result: dict) -> str:
         parts += [native_table(result["native"]), ""]
     if "memory" in result:
         parts += [memory_table(result["memory"]), ""]
+    if "family" in result:
+        parts += [family_memory_table(result["family"]), ""]
     if "rows" in result:
         one_step = [[r["env"], r["mode"], f"{r['steps_per_s']:.1f}"] for r in result["rows"]]
         parts += [

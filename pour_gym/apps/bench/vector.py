@@ -16,7 +16,7 @@ import time
 
 import numpy as np
 
-from pour_gym.envs import POUR_V0, make
+from pour_gym.envs import POUR_V0, POUR_V1, make
 from pour_gym.report.tables import markdown_table
 
 NATIVE_SIZES = (1, 2, 4, 8, 16)
@@ -217,6 +217,41 @@ print(json.dumps({{"rss": seen}}))
 """
 
 
+_FAMILY = f"""
+import json, sys, gymnasium as gym, pour_gym
+episodes = int(sys.argv[1])
+env = gym.make({POUR_V1!r}, objects="procedural:train", num_threads=1)
+env.action_space.seed(0)
+env.reset(seed=0)
+done, steps, seen = 0, 0, []
+while done < episodes:
+    _, _, terminated, truncated, _ = env.step(env.action_space.sample())
+    steps += 1
+    if terminated or truncated:
+        done += 1
+        env.reset()
+        if done % 50 == 0:
+            seen.append({_RSS})
+print(json.dumps({{"rss": seen, "steps": steps}}))
+"""
+
+
+def bench_family_memory(episodes: int = 1000) -> dict:
+    """Resident memory (MB) of one Pour-v1 env over ``procedural:train``, random actions.
+
+    Make the family ready first (``pour-gym build-assets --objects procedural:train``), or
+    the probe labels each member and computes its field as it meets it. The process's
+    memory is read every 50 episodes.
+
+    Returns:
+        ``{"episodes", "steps", "each_50": [MB...], "max", "last"}``.
+    """
+    doc = _measure(_FAMILY, str(episodes))
+    seen = doc["rss"]
+    return {"episodes": episodes, "steps": doc["steps"], "each_50": seen, "max": max(seen),
+            "last": seen[-1]}  # fmt: skip
+
+
 def _measure(script: str, *args: str) -> dict:
     done = subprocess.run(
         [sys.executable, "-c", script, *args], capture_output=True, text=True, check=False
@@ -259,6 +294,16 @@ def bench_memory(rounds: int = 50, envs: int = 8) -> dict:
             "each": seen,
         },
     }
+
+
+def family_memory_table(result: dict) -> str:
+    """Markdown table of :func:`bench_family_memory`."""
+    rows = [
+        [f"one Pour-v1 env over procedural:train, {result['episodes']} random-action episodes "
+         f"({result['steps']:,} steps): after 50 / at most / after the last",
+         f"{result['each_50'][0]:.0f} / {result['max']:.0f} / {result['last']:.0f}"],
+    ]  # fmt: skip
+    return markdown_table(["process", "resident memory, MB"], rows, align="lr")
 
 
 def memory_table(result: dict) -> str:
