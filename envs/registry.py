@@ -7,7 +7,6 @@ bad actions, the soak) run over every entry with its ``quick`` arguments.
 
 from __future__ import annotations
 
-import functools
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
@@ -91,14 +90,14 @@ def register_envs() -> None:
     (:class:`~pour_gym.envs.vector.PourVectorEnv`): ``gym.make_vec(id, num_envs=N)``
     steps N envs in threads of this process.
     """
-    from pour_gym.envs.vector import PourVectorEnv
+    from pour_gym.envs.vector import vector_creator_name
 
     for e in ENVS:
         if e.id not in registry:
             register(
                 id=e.id,
                 entry_point=e.entry_point,
-                vector_entry_point=functools.partial(PourVectorEnv, e.id),
+                vector_entry_point=f"pour_gym.envs.vector:{vector_creator_name(e.id)}",
                 max_episode_steps=e.max_episode_steps,
                 kwargs=dict(e.kwargs),
             )

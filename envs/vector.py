@@ -22,6 +22,7 @@ Semantics are Gymnasium 1.x's (:class:`gymnasium.vector.SyncVectorEnv`'s): batch
 from __future__ import annotations
 
 import copy
+import functools
 import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
@@ -308,3 +309,22 @@ class PourVectorEnv(VectorEnv):
 
     def __repr__(self) -> str:
         return f"PourVectorEnv({self.env_id}, num_envs={self.num_envs}, threads={self.num_threads})"
+
+
+def vector_creator_name(env_id: str) -> str:
+    """The name in this module of an id's vector env maker (``vector_pour_v1``, say).
+
+    Registered as ``"pour_gym.envs.vector:<name>"``: a string, so that an env's spec
+    stays serialisable (Minari writes it into its datasets).
+    """
+    return "vector_" + env_id.split("/")[-1].lower().replace("-", "_")
+
+
+def __getattr__(name: str):
+    """``vector_<slug>``: :class:`PourVectorEnv` of that id (what ``make_vec`` calls)."""
+    from pour_gym.envs.registry import ENVS
+
+    for e in ENVS:
+        if vector_creator_name(e.id) == name:
+            return functools.partial(PourVectorEnv, e.id)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

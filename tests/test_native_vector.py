@@ -54,6 +54,7 @@ def test_make_vec_gives_the_native_vector_env_for_every_id(env_id):
     )
     assert isinstance(venv.unwrapped, PourVectorEnv)
     assert venv.unwrapped.spec.id == env_id
+    assert gym.spec(env_id).to_json()  # a string entry point: specs stay serialisable
     check_vector_env(venv)
     venv.close()
     venv.close()  # twice is fine
