@@ -83,6 +83,15 @@ ENVS: tuple[EnvEntry, ...] = (
 ENV_IDS: tuple[str, ...] = tuple(e.id for e in ENVS)
 
 
+def vector_creator_name(env_id: str) -> str:
+    """The name in this module of an id's vector env maker (``vector_pour_v1``, say).
+
+    Registered as ``"pour_gym.envs.vector:<name>"``: a string, so that an env's spec
+    stays serialisable (Minari writes it into its datasets).
+    """
+    return "vector_" + env_id.split("/")[-1].lower().replace("-", "_")
+
+
 def register_envs() -> None:
     """Register every entry of :data:`ENVS` with Gymnasium (once).
 
@@ -90,8 +99,6 @@ def register_envs() -> None:
     (:class:`~pour_gym.envs.vector.PourVectorEnv`): ``gym.make_vec(id, num_envs=N)``
     steps N envs in threads of this process.
     """
-    from pour_gym.envs.vector import vector_creator_name
-
     for e in ENVS:
         if e.id not in registry:
             register(

@@ -34,6 +34,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space, create_empty_array, iterate
 
 from pour_gym.envs.containers import KEPT, ContainerStore
+from pour_gym.envs.registry import ENVS, vector_creator_name
 from pour_gym.io.numba_threads import usable_cores
 
 
@@ -311,19 +312,8 @@ class PourVectorEnv(VectorEnv):
         return f"PourVectorEnv({self.env_id}, num_envs={self.num_envs}, threads={self.num_threads})"
 
 
-def vector_creator_name(env_id: str) -> str:
-    """The name in this module of an id's vector env maker (``vector_pour_v1``, say).
-
-    Registered as ``"pour_gym.envs.vector:<name>"``: a string, so that an env's spec
-    stays serialisable (Minari writes it into its datasets).
-    """
-    return "vector_" + env_id.split("/")[-1].lower().replace("-", "_")
-
-
 def __getattr__(name: str):
     """``vector_<slug>``: :class:`PourVectorEnv` of that id (what ``make_vec`` calls)."""
-    from pour_gym.envs.registry import ENVS
-
     for e in ENVS:
         if vector_creator_name(e.id) == name:
             return functools.partial(PourVectorEnv, e.id)
