@@ -15,10 +15,10 @@ from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 from gymnasium import spaces
-from scipy.spatial.transform import Rotation
 
 from pour_gym.sim import Camera
 from pour_gym.sim.panda import ARM_JOINTS, REST_POSES, SEED_OFFSETS, Grasp, Panda, grasp
+from pour_gym.sim.rotations import about_z
 
 if TYPE_CHECKING:
     from pour_gym.envs.pour import PourEnv
@@ -105,7 +105,7 @@ class FreeHolder(Holder):
 
     def source_frame(self, gs: ContainerGeometry) -> tuple[np.ndarray, np.ndarray]:
         """Half a turn about the vertical: the handle away from the target, the lip +x."""
-        rotation = Rotation.from_euler("z", np.pi).as_matrix()
+        rotation = about_z(np.pi)
         return rotation, np.array([gs.rim_center[0] - gs.rim_radius, gs.rim_center[1], gs.height])
 
     def hold(self, env: PourEnv) -> None:
@@ -248,7 +248,7 @@ class PandaHolder(Holder):
 
     def source_frame(self, gs: ContainerGeometry) -> tuple[np.ndarray, np.ndarray]:
         """A quarter turn about the vertical: the handle faces the arm (-y), the lip +x."""
-        rotation = Rotation.from_euler("z", -np.pi / 2).as_matrix()
+        rotation = about_z(-np.pi / 2)
         return rotation, np.array([gs.rim_center[0], gs.rim_center[1] + gs.rim_radius, gs.height])
 
     def hold(self, env: PourEnv) -> None:

@@ -230,7 +230,7 @@ class ParticleDropEnv(PourGymEnv):
         if mode == "features":
             obs = self._features
         else:
-            size = np.ptp(self.container.asset.mesh.bounds, axis=0)
+            size = np.ptp(self.container.asset.surface.bounds, axis=0)
             obs = np.array([*(self.spawn / STATE_SCALE), *(size / STATE_SCALE), self.fill])
         space = self.obs_spaces[mode]
         return np.clip(obs, space.low, space.high).astype(np.float32)

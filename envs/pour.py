@@ -5,7 +5,6 @@ from __future__ import annotations
 import numpy as np
 from gymnasium import spaces
 from gymnasium.utils import EzPickle
-from scipy.spatial.transform import Rotation
 
 from pour_gym.envs.base import PourGymEnv
 from pour_gym.envs.holders import make_holder
@@ -14,6 +13,7 @@ from pour_gym.envs.task import POUR
 from pour_gym.features import ContainerGeometry, fluid_features, relative_distance_height
 from pour_gym.fluid.pbf import PBFConfig
 from pour_gym.sim import Camera, Container
+from pour_gym.sim.rotations import about_z
 from pour_gym.sim.sensors import SensorConfig
 
 FEATURE_NAMES = (
@@ -399,7 +399,7 @@ class PourEnv(PourGymEnv):
         # The target stands on the table; the source faces it with its lip (handle away).
         self.target_yaw = float(rng.uniform(-np.pi, np.pi))
         self.target_pos = np.array([rng.uniform(0.15, 0.25), rng.uniform(-0.1, 0.1), 0.0])
-        rot_t = Rotation.from_euler("z", self.target_yaw).as_matrix()
+        rot_t = about_z(self.target_yaw)
         self.world.teleport(self.target, self.target_pos, rot_t)
         self.source_base_rotation, self.lip_local = self.holder.source_frame(gs)
         self.z_min = gt.height + gs.height + 0.01
@@ -630,8 +630,8 @@ class PourEnv(PourGymEnv):
                 c["in_source"] / t,
             ]
         else:
-            size_s = np.ptp(seen_s.mesh.bounds, axis=0)
-            size_t = np.ptp(seen_t.mesh.bounds, axis=0)
+            size_s = np.ptp(seen_s.surface.bounds, axis=0)
+            size_t = np.ptp(seen_t.surface.bounds, axis=0)
             n0 = self.fill
             obs = [
                 *self.lip,

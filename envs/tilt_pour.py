@@ -7,7 +7,6 @@ from typing import ClassVar
 import numpy as np
 from gymnasium import spaces
 from gymnasium.utils import EzPickle
-from scipy.spatial.transform import Rotation
 
 from pour_gym.envs.base import PourGymEnv
 from pour_gym.envs.observations import parse_obs_mode, vector_mode
@@ -15,6 +14,7 @@ from pour_gym.envs.task import TILT
 from pour_gym.features import cavity_points, fluid_features, mouth_volume
 from pour_gym.fluid.pbf import PBFConfig
 from pour_gym.sim import Camera
+from pour_gym.sim.rotations import from_rotvec
 from pour_gym.sim.sensors import SEGMENTS, SensorConfig
 from pour_gym.sim.spawn import cavity_lattice
 
@@ -193,7 +193,7 @@ class TiltPourEnv(PourGymEnv):
         v = self.fluid_config.particle_volume
         self.count = min(len(lattice), max(1, round(fill * g.cavity_volume / v)))
         self.rest = lattice[: self.count]
-        self.rotation = Rotation.from_rotvec(np.radians(tilt) * AXIS).as_matrix()
+        self.rotation = from_rotvec(np.radians(tilt) * AXIS)
         self.episode_asset = asset
         # The thesis's f4: the fluid at rest upright, rotated with the container (all of
         # it counts as in the container), above the lowest rim vertex.
@@ -232,7 +232,7 @@ class TiltPourEnv(PourGymEnv):
         steps = round(TILT_TIME / 0.1)
         for k in range(steps + round(HOLD_TIME / 0.1)):
             angle = self.tilt * min((k + 1) / steps, 1.0)
-            rot = Rotation.from_rotvec(np.radians(angle) * AXIS).as_matrix()
+            rot = from_rotvec(np.radians(angle) * AXIS)
             world.set_pose(container, np.zeros(3), rot)
             world.step(0.1)
         self._world_ready = True
@@ -264,7 +264,7 @@ class TiltPourEnv(PourGymEnv):
         if mode == "features":
             obs = np.array([self.f4])
         else:
-            size = np.ptp(self.episode_asset.mesh.bounds, axis=0) / 0.1
+            size = np.ptp(self.episode_asset.surface.bounds, axis=0) / 0.1
             obs = np.array([np.radians(self.tilt), self.fill, *size])
         space = self.obs_spaces[mode]
         return np.clip(obs, space.low, space.high).astype(np.float32)

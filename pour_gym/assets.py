@@ -20,19 +20,28 @@ The repository's top-level ``assets/`` folder is installed as the package
 
 from __future__ import annotations
 
+import hashlib
 import json
+import os
 import re
 import time
+import zipfile
 from collections.abc import Callable
-from dataclasses import dataclass
 from importlib.resources import files
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import trimesh
 
 from pour_gym.errors import ClosedContainerError, InputError, NoWaterError
-from pour_gym.features import ContainerGeometry, container_cavity, container_geometry
+from pour_gym.features import (
+    CAVITY_VERSION,
+    CAVITY_VOXEL,
+    ContainerGeometry,
+    container_cavity,
+    container_geometry,
+)
+from pour_gym.io.cache import cache_dir as user_cache
 from pour_gym.mesh.fileio import (
     CLOUD_SUFFIXES,
     MESH_SUFFIXES,
@@ -40,13 +49,20 @@ from pour_gym.mesh.fileio import (
     load_point_cloud,
     validate_mesh,
 )
-from pour_gym.mesh.measure import opening_problem
-from pour_gym.mesh.reconstruct import RECONSTRUCTION_VERSION
-from pour_gym.objects import OBJECT_NAMES, ContainerModel, ObjectSpec, build_object, procedural
+from pour_gym.mesh.measure import Cavity, opening_problem
+from pour_gym.mesh.surface import Surface
+from pour_gym.objects import procedural
+from pour_gym.objects.catalogue import OBJECT_NAMES, ObjectSpec
 from pour_gym.parts import PART_NAMES, Part
 from pour_gym.report.tables import markdown_table
-from pour_gym.warp.frame import canonical_frame
-from pour_gym.warp.transfer import transfer_best, transfer_thesis
+
+if TYPE_CHECKING:
+    import trimesh
+
+    from pour_gym.objects.build import ContainerModel
+
+# Labelling (the warp, the builders, trimesh) is imported by the functions that label: an
+# environment only loads assets, and a process that never labels stays some 60 MB lighter.
 
 REAL_MESHES: dict[str, str] = {
     "ycb_mug": "ycb/025_mug.obj",
@@ -96,6 +112,10 @@ def resolve_target(target: str | Path | trimesh.Trimesh, scale: float = 1.0):
     Raises:
         InputError: neither a catalogue name, a procedural member nor a readable mesh.
     """
+    import trimesh
+
+    from pour_gym.objects import build_object
+
     if isinstance(target, trimesh.Trimesh):
         return "mesh", target, None
     name = str(target)
@@ -112,23 +132,60 @@ def resolve_target(target: str | Path | trimesh.Trimesh, scale: float = 1.0):
     )
 
 
-@dataclass
 class LabelledAsset:
     """A labelled container in its canonical frame.
 
     Attributes:
         name: the asset's name.
-        mesh: the mesh in the canonical frame, vertices in the input's order.
         labels: (V,) int8 part per vertex.
         geometry: container geometry from the labels.
         meta: everything ``meta.json`` holds.
+        surface: the mesh's arrays and topology (:class:`~pour_gym.mesh.surface.Surface`).
+        mesh: the mesh in the canonical frame, vertices in the input's order, as a trimesh
+            (an asset loaded from the cache makes it from :attr:`surface` when first read).
+        hull_volume: the volume of the mesh's convex hull, in m^3.
     """
 
-    name: str
-    mesh: trimesh.Trimesh
-    labels: np.ndarray
-    geometry: ContainerGeometry
-    meta: dict
+    def __init__(
+        self,
+        name: str,
+        mesh: trimesh.Trimesh | Surface,
+        labels: np.ndarray,
+        geometry: ContainerGeometry,
+        meta: dict,
+        hull_volume: float | None = None,
+    ):
+        self.name = name
+        self.labels = labels
+        self.geometry = geometry
+        self.meta = meta
+        self._mesh = None if isinstance(mesh, Surface) else mesh
+        self._surface = mesh if isinstance(mesh, Surface) else None
+        self._hull_volume = hull_volume
+
+    @property
+    def mesh(self) -> trimesh.Trimesh:
+        """The mesh as a trimesh (made from :attr:`surface` on first use)."""
+        if self._mesh is None:
+            self._mesh = self.surface.to_trimesh()
+        return self._mesh
+
+    @property
+    def surface(self) -> Surface:
+        """The mesh's arrays and topology, without trimesh."""
+        if self._surface is None:
+            self._surface = Surface.of(self.mesh)
+        return self._surface
+
+    @property
+    def hull_volume(self) -> float:
+        """The volume of the mesh's convex hull, in m^3 (kept once computed)."""
+        if self._hull_volume is None:
+            self._hull_volume = float(self.mesh.convex_hull.volume)
+        return self._hull_volume
+
+    def __repr__(self) -> str:
+        return f"LabelledAsset({self.name!r}, {len(self.labels)} vertices)"
 
 
 # What an asset's numbers mean: coordinates to 0.1 micrometre (the OBJ's 7 decimals in m);
@@ -194,11 +251,16 @@ def _source_model(source: str) -> ContainerModel:
             f"the source must be a labelled thesis object ({', '.join(OBJECT_NAMES)}); "
             f"got {source!r}"
         )
+    from pour_gym.objects import build_object
+
     return build_object(source)
 
 
 def _transfer(src: ContainerModel, mesh: trimesh.Trimesh, method: str, upright: bool):
     """Labels of ``mesh`` warped from ``src`` by ``method``, and the mesh's canonical frame."""
+    from pour_gym.warp.frame import canonical_frame
+    from pour_gym.warp.transfer import transfer_best, transfer_thesis
+
     if method == "best":
         result = transfer_best(src.mesh, src.labels, mesh, target_upright=upright)
         return result, result.frame
@@ -252,9 +314,11 @@ def label_container(
     assert frame is not None
     transform = canonical_transform(frame.transform)
     moved = np.asarray(mesh.vertices) @ transform[:3, :3].T + transform[:3, 3]
+    import trimesh
+
     placed = trimesh.Trimesh(canonical_coordinates(moved), mesh.faces, process=False)
     water = container_cavity(placed)
-    closed = opening_problem(water, placed)
+    closed = opening_problem(water, float(placed.convex_hull.volume))
     if closed is not None and not allow_closed:
         raise ClosedContainerError(name, closed)
     labels = result.labels.astype(np.int8)
@@ -295,6 +359,8 @@ def write_asset(asset: LabelledAsset, out: str | Path, picture: bool = True) -> 
     Returns:
         The directory.
     """
+    import trimesh
+
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     # Canonical coordinates at fixed precision and no normals: small files, and a rebuild
@@ -338,16 +404,87 @@ def load_asset(name_or_dir: str | Path) -> LabelledAsset:
             f"no labelled asset at {path} (missing {', '.join(missing)}); known assets: "
             f"{', '.join(CATALOGUE)}; build them with pour-gym build-assets"
         )
-    mesh = load_mesh(path / "mesh.obj")
     labels = np.load(path / "labels.npy")
     meta = json.loads((path / "meta.json").read_text())
-    return LabelledAsset(
-        name=meta.get("name", path.name),
-        mesh=mesh,
-        labels=labels,
-        geometry=container_geometry(mesh, labels),
-        meta=meta,
-    )
+    name = meta.get("name", path.name)
+    entry = _loaded_entry(path, labels, name)
+    if entry.is_file():
+        try:
+            return _read_loaded(entry, name, labels, meta)
+        except (OSError, KeyError, ValueError, zipfile.BadZipFile):
+            pass  # a damaged entry (a full disk, say) is made again below
+    mesh = load_mesh(path / "mesh.obj")
+    asset = LabelledAsset(name, mesh, labels, container_geometry(mesh, labels), meta)
+    _write_loaded(entry, asset)
+    return asset
+
+
+# Bumped when what a loaded asset holds, or how it is computed from the folder, changes.
+LOADED_VERSION = 1
+
+
+def _loaded_entry(path: Path, labels: np.ndarray, name: str) -> Path:
+    """Where an asset folder's loaded form is kept: keyed by its mesh and labels' bytes."""
+    h = hashlib.sha256((path / "mesh.obj").read_bytes())
+    h.update(np.ascontiguousarray(labels).tobytes())
+    h.update(f"{labels.dtype} {labels.shape} l{LOADED_VERSION}".encode())
+    h.update(f" c{CAVITY_VERSION} {CAVITY_VOXEL!r}".encode())
+    stem = re.sub(r"[^A-Za-z0-9]+", "_", name)[:60]
+    return user_cache("loaded") / f"{stem}_{h.hexdigest()[:16]}.npz"
+
+
+def _write_loaded(entry: Path, asset: LabelledAsset) -> None:
+    """Keep an asset's arrays, topology and geometry as loading computed them.
+
+    What the next load reads instead of parsing the OBJ with trimesh and computing the
+    convex hulls and the cavity again: the same float64 numbers, so an environment's
+    episodes are the same bits from a fresh folder or from this entry.
+    """
+    surface, g = asset.surface, asset.geometry
+    part = entry.with_suffix(f".{os.getpid()}.{id(asset)}.npz")
+    np.savez(
+        part,
+        vertices=surface.vertices, faces=surface.faces, bounds=surface.bounds,
+        is_watertight=surface.is_watertight, body_count=surface.body_count,
+        hull_volume=asset.hull_volume,
+        rim_center=g.rim_center, rim_radius=g.rim_radius, height=g.height,
+        lip_point=g.lip_point, container_volume=g.container_volume,
+        cavity_volume=g.cavity_volume, rim_vertices=g.rim_vertices,
+        cavity_bits=np.packbits(g.cavity.mask), cavity_shape=np.array(g.cavity.mask.shape),
+        cavity_origin=g.cavity.origin, cavity_voxel=g.cavity.voxel,
+        cavity_level=g.cavity.level, cavity_overflows=g.cavity.overflows,
+    )  # fmt: skip
+    os.replace(part, entry)  # whole or not at all: a reader never sees half a file
+
+
+def _read_loaded(entry: Path, name: str, labels: np.ndarray, meta: dict) -> LabelledAsset:
+    """An asset from its loaded form (:func:`_write_loaded`), without trimesh or SciPy."""
+    with np.load(entry) as d:
+        shape = tuple(int(n) for n in d["cavity_shape"])
+        mask = np.unpackbits(d["cavity_bits"], count=int(np.prod(shape))).reshape(shape)
+        cavity = Cavity(
+            mask.astype(bool), d["cavity_origin"], float(d["cavity_voxel"]),
+            float(d["cavity_level"]), bool(d["cavity_overflows"]),
+        )  # fmt: skip
+        geometry = ContainerGeometry(
+            rim_center=d["rim_center"],
+            rim_radius=float(d["rim_radius"]),
+            height=float(d["height"]),
+            lip_point=d["lip_point"],
+            container_volume=float(d["container_volume"]),
+            cavity_volume=float(d["cavity_volume"]),
+            rim_vertices=d["rim_vertices"],
+            cavity=cavity,
+        )
+        surface = Surface(
+            vertices=d["vertices"],
+            faces=d["faces"],
+            bounds=d["bounds"],
+            is_watertight=bool(d["is_watertight"]),
+            body_count=int(d["body_count"]),
+        )
+        hull = float(d["hull_volume"])
+    return LabelledAsset(name, surface, labels, geometry, meta, hull_volume=hull)
 
 
 def check_open(asset: LabelledAsset, spec: str | Path | None = None) -> LabelledAsset:
@@ -356,7 +493,7 @@ def check_open(asset: LabelledAsset, spec: str | Path | None = None) -> Labelled
     Raises:
         ClosedContainerError: the container looks closed, whatever it was labelled with.
     """
-    closed = opening_problem(asset.geometry.cavity, asset.mesh)
+    closed = opening_problem(asset.geometry.cavity, asset.hull_volume)
     if closed is not None:
         raise ClosedContainerError(str(spec or asset.name), closed, flag=False)
     return asset
@@ -430,10 +567,6 @@ def cache_entry(key: bytes, stem: str, cache_dir: str | Path | None = None) -> P
         stem: the start of its folder's name, for people reading the cache.
         cache_dir: where assets are kept (default: the user cache's ``assets``).
     """
-    import hashlib
-
-    from pour_gym.io.cache import cache_dir as user_cache
-
     root = Path(cache_dir) if cache_dir is not None else user_cache("assets")
     stem = re.sub(r"[^A-Za-z0-9]+", "_", stem)
     return root / f"{stem}_{hashlib.sha256(key).hexdigest()[:16]}"
@@ -454,7 +587,6 @@ def cached_asset(
         The asset as loaded from its folder (so a made asset and a cached one are the
         same numbers).
     """
-    import os
     import shutil
 
     target = cache_entry(key, stem, cache_dir)
@@ -531,6 +663,8 @@ def resolve_asset(spec: str | Path, cache_dir: str | Path | None = None) -> Labe
         key = f"{s} g{procedural.GENERATOR_VERSION} v{LABELLING_VERSION}".encode()
         return cached_asset(key, s, lambda: label_container(s), cache_dir)
     if p.is_file() and is_point_cloud_file(p):
+        from pour_gym.mesh.reconstruct import RECONSTRUCTION_VERSION
+
         key = p.read_bytes() + f"cloud r{RECONSTRUCTION_VERSION} v{LABELLING_VERSION}".encode()
         return cached_asset(key, p.stem, lambda: label_point_cloud(p), cache_dir)
     if p.is_file():

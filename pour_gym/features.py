@@ -31,15 +31,17 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-import trimesh
-from scipy.spatial import ConvexHull, QhullError, cKDTree
 
 from pour_gym.errors import InputError
 from pour_gym.io.cache import cache_dir, mesh_key
 from pour_gym.mesh.measure import Cavity, cavity
 from pour_gym.parts import Part
+
+if TYPE_CHECKING:
+    import trimesh
 
 
 @dataclass
@@ -158,6 +160,10 @@ def container_geometry(
             "and 4 needed): label the mesh with pour-gym label, and check that it is an open "
             "container"
         )
+    # Imported here: an environment loads its containers' geometry from the cache and
+    # never needs Qhull (scipy.spatial weighs some 25 MB per process).
+    from scipy.spatial import ConvexHull, QhullError
+
     centre = rim.mean(axis=0)
     try:
         hull = float(ConvexHull(inner).volume)
@@ -242,6 +248,8 @@ def density_volume(points: np.ndarray, sigma: float) -> float:
     p = np.asarray(points, dtype=float)
     if len(p) == 0:
         return 0.0
+    from scipy.spatial import cKDTree
+
     norm = 1.0 / ((2.0 * np.pi) ** 1.5 * sigma**3)
     tree = cKDTree(p)
     pairs = tree.sparse_distance_matrix(tree, 3.0 * sigma, output_type="coo_matrix")

@@ -19,6 +19,7 @@ from __future__ import annotations
 import json
 import os
 from dataclasses import asdict, dataclass, field, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -31,8 +32,13 @@ from pour_gym.assets import (
 )
 from pour_gym.errors import ClosedContainerError, InputError
 from pour_gym.features import container_geometry
-from pour_gym.mesh.reconstruct import RECONSTRUCTION_VERSION, ReconstructConfig, reconstruct
-from pour_gym.mesh.scan import ScanConfig, turntable_scan
+
+if TYPE_CHECKING:
+    from pour_gym.mesh.reconstruct import ReconstructConfig
+    from pour_gym.mesh.scan import ScanConfig
+
+# The scan and the reconstruction (trimesh, SciPy, scikit-image) are imported when a
+# container is first perceived: an environment that perceives from the cache needs none.
 
 PERCEPTIONS = ("true", "scan")
 # Bumped when the same container, settings and seed are perceived otherwise.
@@ -75,8 +81,8 @@ class ScanPerception:
         source: the labelled cup warped onto the reconstruction.
     """
 
-    scan: ScanConfig = field(default_factory=ScanConfig)
-    reconstruct: ReconstructConfig = field(default_factory=ReconstructConfig)
+    scan: ScanConfig = field(default_factory=lambda: _scan_config())
+    reconstruct: ReconstructConfig = field(default_factory=lambda: _reconstruct_config())
     narrower: tuple[float, ...] = (0.006,)
     higher: tuple[float, ...] = (30.0, 60.0)
     source: str = "red_cup"
@@ -84,6 +90,18 @@ class ScanPerception:
     def to_dict(self) -> dict:
         """The settings as a JSON-serialisable dict."""
         return asdict(self)
+
+
+def _scan_config() -> ScanConfig:
+    from pour_gym.mesh.scan import ScanConfig
+
+    return ScanConfig()
+
+
+def _reconstruct_config() -> ReconstructConfig:
+    from pour_gym.mesh.reconstruct import ReconstructConfig
+
+    return ReconstructConfig()
 
 
 def _first_labelled(asset: LabelledAsset, seed: int, how: ScanPerception):
@@ -97,6 +115,9 @@ def _first_labelled(asset: LabelledAsset, seed: int, how: ScanPerception):
         PerceptionError: every reconstruction is closed at the top (naming the kernels and
             views tried), or the warp refuses one for another reason.
     """
+    from pour_gym.mesh.reconstruct import reconstruct
+    from pour_gym.mesh.scan import turntable_scan
+
     name = f"{asset.name} (scan {seed})"
     widths = (how.reconstruct.sigma, *how.narrower)
     looks = [how.scan.elevations_deg] + ([how.higher] if how.higher else [])
@@ -181,11 +202,13 @@ def perceived_asset(
     Raises:
         PerceptionError: as :func:`perceive`.
     """
+    from pour_gym.mesh.reconstruct import RECONSTRUCTION_VERSION
+
     how = how or ScanPerception()
     key = b"".join(
         [
-            np.ascontiguousarray(asset.mesh.vertices, dtype=np.float64).tobytes(),
-            np.ascontiguousarray(asset.mesh.faces, dtype=np.int64).tobytes(),
+            np.ascontiguousarray(asset.surface.vertices, dtype=np.float64).tobytes(),
+            np.ascontiguousarray(asset.surface.faces, dtype=np.int64).tobytes(),
             np.ascontiguousarray(asset.labels).tobytes(),
             repr(sorted(how.to_dict().items())).encode(),
             f"seed {seed} p{PERCEPTION_VERSION} r{RECONSTRUCTION_VERSION}".encode(),

@@ -204,3 +204,26 @@ if __name__ == "__main__":
     for loop in loops:
         print("  cycle: " + " -> ".join(loop))
     sys.exit(1 if bad or loops else 0)
+
+
+def test_an_env_on_cached_assets_imports_no_labelling():
+    # A worker that pours needs the fluid, pybullet and its containers' cached numbers:
+    # not trimesh, scipy.spatial, the warp or the reconstruction (some 60 MB per process).
+    import subprocess
+    import sys
+
+    script = (
+        "import sys, gymnasium as gym, pour_gym\n"
+        "env = gym.make('PourGym/Pour-v1', objects='red_cup', num_threads=1)\n"
+        "env.reset(seed=0)\n"
+        "for _ in range(3):\n"
+        "    env.step(env.action_space.sample())\n"
+        "env.close()\n"
+        "heavy = ('trimesh', 'scipy.spatial', 'scipy.ndimage', 'skimage', 'open3d', 'torch',\n"
+        "         'pour_gym.warp', 'pour_gym.mesh.reconstruct', 'pour_gym.objects.build')\n"
+        "print(sorted(m for m in sys.modules if m.startswith(heavy)))\n"
+    )
+    run = [sys.executable, "-W", "ignore", "-c", script]
+    subprocess.run(run, check=True, capture_output=True)  # fills the caches
+    done = subprocess.run(run, check=True, capture_output=True, text=True)
+    assert done.stdout.strip().splitlines()[-1] == "[]"

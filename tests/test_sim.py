@@ -138,3 +138,21 @@ def test_scripted_pour_lands_in_the_target(fluid):
     assert out.source + out.target + out.elsewhere == n
     assert out.target >= 0.95 * n
     assert len(out.frames) == 12 and out.frames[0].shape == (360, 480, 3)
+
+
+def test_the_envs_rotations_are_scipys_bit_for_bit():
+    # The envs build their turns without SciPy (it would import scipy.spatial per
+    # process); an episode must stay the bits it was with SciPy's Rotation.
+    from pour_gym.sim.rotations import about_z, from_rotvec
+
+    rng = np.random.default_rng(3)
+    for a in [*rng.uniform(-4.0, 4.0, 3000), np.pi, -np.pi / 2, 0.0]:
+        assert np.array_equal(about_z(a), Rotation.from_euler("z", a).as_matrix())
+    axis = np.array([0.0, 1.0, 0.0])
+    vectors = [
+        *(rng.normal(size=(2000, 3)) * rng.uniform(0.0, 3.0, (2000, 1))),
+        *(np.radians(rng.uniform(-180.0, 180.0, 1000))[:, None] * axis),
+        np.zeros(3), 1e-5 * axis, 1e-3 * axis,  # the series SciPy uses near zero
+    ]  # fmt: skip
+    for v in vectors:
+        assert np.array_equal(from_rotvec(v), Rotation.from_rotvec(v).as_matrix())

@@ -22,14 +22,16 @@ from __future__ import annotations
 import hashlib
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pybullet
-import trimesh
-from scipy.spatial.transform import Rotation
 
 from pour_gym.fluid.pbf import GRAVITY, MAX_SPEED, PBFConfig, PosedCollider, substep_poses
 from pour_gym.io.stdio import redirect_stdout_fd
+
+if TYPE_CHECKING:
+    import trimesh
 
 
 def convex_parts(client, mesh: trimesh.Trimesh, cache_dir: str | Path) -> Path:
@@ -176,6 +178,9 @@ class BulletFluid:
         for c in self.colliders:
             if c.prev_rotation is None:
                 c.prev_rotation, c.prev_translation = c.rotation.copy(), c.translation.copy()
+        # Imported here: only this reference backend needs SciPy's rotations.
+        from scipy.spatial.transform import Rotation
+
         poses = [substep_poses(c, n_sub) for c in self.colliders]
         for s in range(n_sub):
             for c, (rot, trans) in zip(self.colliders, poses, strict=True):

@@ -24,6 +24,8 @@ from pour_gym.io.open3d_loader import open3d
 if TYPE_CHECKING:  # trimesh takes 0.6 s to import; the fluid's processes need none
     import trimesh
 
+    from pour_gym.mesh.surface import Surface
+
 # The fast-math flags of the fluid's compiled code: every one but "reassoc". With
 # reassociation LLVM may sum a particle's neighbours in another order wherever it inlines a
 # function, so the kernel compiled in a process and the same kernel loaded from numba's
@@ -134,7 +136,7 @@ SIGN_VERSION = 3  # bumped when the way fields are signed changes (cached fields
 
 
 def build_sdf(
-    mesh: trimesh.Trimesh,
+    mesh: trimesh.Trimesh | Surface,
     spacing: float = 1e-3,
     margin: float = 0.02,
     cache_dir: str | Path | None = None,
@@ -153,7 +155,8 @@ def build_sdf(
     to a wall of ``min_wall``, so that the fluid meets a wall wherever the mesh has one.
 
     Args:
-        mesh: the container, in m.
+        mesh: the container, in m (a trimesh, or its arrays as a
+            :class:`~pour_gym.mesh.surface.Surface`).
         spacing: grid spacing, in m (below half the wall thickness, so that the field
             resolves the wall).
         margin: the grid extends this far beyond the mesh's bounds, in m.

@@ -9,13 +9,17 @@ from __future__ import annotations
 
 import warnings
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import trimesh
 
 from pour_gym.errors import InputError
 from pour_gym.io.open3d_loader import open3d
-from pour_gym.mesh.scan import PointCloud
+
+if TYPE_CHECKING:
+    import trimesh
+
+    from pour_gym.mesh.scan import PointCloud
 
 CLOUD_SUFFIXES = (".ply", ".pcd", ".xyz", ".npy")
 MESH_SUFFIXES = (".obj", ".stl", ".ply", ".glb", ".gltf", ".off")
@@ -72,6 +76,8 @@ def load_point_cloud(path: str | Path, scale: float = 1.0) -> PointCloud:
         normals = raw[:, 3:] if raw.shape[1] == 6 else None
     if len(points) == 0:
         raise InputError(f"{path.name} contains no points")
+    from pour_gym.mesh.scan import PointCloud
+
     return PointCloud(
         points=points * scale,
         normals=normals,
@@ -126,6 +132,8 @@ def load_mesh(path: str | Path, scale: float = 1.0) -> trimesh.Trimesh:
     """
     path = _existing(path, MESH_SUFFIXES, "mesh")
     try:
+        import trimesh
+
         loaded = trimesh.load(path, force="mesh", process=False)
     except Exception as exc:
         raise InputError(f"cannot read mesh {path.name}: {exc}") from None
@@ -150,6 +158,8 @@ def _shared_corners(mesh: trimesh.Trimesh) -> trimesh.Trimesh:
     rank = np.empty_like(order)
     rank[order] = np.arange(len(order))
     faces = rank[inverse.ravel()][np.asarray(mesh.faces)]
+    import trimesh
+
     return trimesh.Trimesh(v[first[order]], faces, process=False)
 
 

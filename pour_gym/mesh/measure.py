@@ -18,13 +18,15 @@ Units are metres and m^3; z is up.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-import trimesh
-from scipy import ndimage
 
 from pour_gym.errors import InputError
 from pour_gym.io.open3d_loader import open3d
+
+if TYPE_CHECKING:
+    import trimesh
 
 
 @dataclass(frozen=True)
@@ -248,6 +250,8 @@ def shell_occupancy(
 def surface_samples(mesh: trimesh.Trimesh, spacing: float, seed: int = 0) -> np.ndarray:
     """Random points on the surface, about one per ``spacing``^2 of area, plus the vertices."""
     count = int(np.ceil(mesh.area / spacing**2))
+    import trimesh
+
     points, _ = trimesh.sample.sample_surface(mesh, count, seed=seed)
     return np.concatenate([points, np.asarray(mesh.vertices)])
 
@@ -272,6 +276,8 @@ def shell_occupancy_from_points(
     occupied = np.zeros(shape, dtype=bool)
     occupied[idx[:, 0], idx[:, 1], idx[:, 2]] = True
     # Empty space enclosed by the shell is the inside of a closed wall, not a cavity.
+    from scipy import ndimage
+
     return ndimage.binary_fill_holes(ndimage.binary_dilation(occupied)), origin
 
 
@@ -280,6 +286,8 @@ def _holds_water(
 ) -> tuple[bool, np.ndarray | None]:
     """Whether the seed's empty region below ``level`` is enclosed, and that region."""
     region = empty[:, :, :level]
+    from scipy import ndimage
+
     labels, _ = ndimage.label(region)
     own = labels[seed]
     if own == 0:
@@ -405,7 +413,7 @@ def _cavity_below_rim(
 MIN_CAVITY_SHARE = 0.05
 
 
-def opening_problem(water: Cavity, mesh: trimesh.Trimesh) -> str | None:
+def opening_problem(water: Cavity, hull: float) -> str | None:
     """Why an upright container looks closed (no opening at its top), or None if it is open.
 
     Two signs: the water never overflows however high it stands (the inside is sealed),
@@ -414,7 +422,7 @@ def opening_problem(water: Cavity, mesh: trimesh.Trimesh) -> str | None:
 
     Args:
         water: the container's cavity, upright.
-        mesh: the container, upright, in m.
+        hull: the volume of the container's convex hull, in m^3.
 
     Returns:
         A sentence naming the problem, or None.
@@ -424,7 +432,6 @@ def opening_problem(water: Cavity, mesh: trimesh.Trimesh) -> str | None:
             f"its inside ({water.volume * 1e6:.0f} ml) is sealed: water poured in could "
             "never run out over a rim"
         )
-    hull = float(mesh.convex_hull.volume)
     if water.volume < MIN_CAVITY_SHARE * hull:
         return (
             f"its only cavity holds {water.volume * 1e6:.1f} ml, "
@@ -473,7 +480,7 @@ def container_dimensions(mesh: trimesh.Trimesh, voxel: float = 5e-4) -> Containe
         rim_radius=radius,
         rim_center=(float(centre[0]), float(centre[1]), float(centre[2])),
         volume=water.volume,
-        closed=opening_problem(water, mesh),
+        closed=opening_problem(water, float(mesh.convex_hull.volume)),
     )
 
 
@@ -506,6 +513,8 @@ def chamfer_distance(
     Returns:
         The distance in m.
     """
+    import trimesh
+
     pa, _ = trimesh.sample.sample_surface(a, samples, seed=seed)
     pb, _ = trimesh.sample.sample_surface(b, samples, seed=seed + 1)
     return float(0.5 * (_distance_to(b, pa).mean() + _distance_to(a, pb).mean()))

@@ -28,11 +28,14 @@ from __future__ import annotations
 
 import re
 from dataclasses import asdict, dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from pour_gym.errors import InputError
-from pour_gym.objects.build import ContainerModel, build_from_radii, shape_of
+
+if TYPE_CHECKING:
+    from pour_gym.objects.build import ContainerModel
 
 PREFIX = "procedural:"
 TRAIN_SEED, TRAIN_SIZE = 20_261_202, 200
@@ -252,6 +255,8 @@ def build_spec(spec: ProceduralSpec) -> ContainerModel:
         InputError: parameters that admit no such container (named).
         RuntimeError: the built mesh is not watertight.
     """
+    from pour_gym.objects.build import build_from_radii, shape_of
+
     # The rim radius is the lip's middle (along x, where every ring's scale is 1): the
     # inner wall's top is half a wall inside it.
     b = spec.rim_radius - spec.wall / 2.0

@@ -102,7 +102,7 @@ def grasp(asset: LabelledAsset) -> Grasp:
         asset: the container (its mesh, labels and geometry, upright, in m).
     """
     g = asset.geometry
-    v = np.asarray(asset.mesh.vertices)
+    v = np.asarray(asset.surface.vertices)
     axis = g.rim_center[:2]
     handle = v[asset.labels == Part.HANDLE]
     if len(handle):

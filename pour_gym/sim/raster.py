@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import numpy as np
 from numba import njit
-from scipy import ndimage
 
 
 @njit(cache=True, nogil=True)
@@ -163,6 +162,9 @@ def composite_water(rgb: np.ndarray, water: np.ndarray, f: float, smooth_px: flo
     filled = np.where(mask, water, 0.0)
     weight = mask.astype(np.float64)
     if smooth_px > 0:
+        # Imported on first use: an environment that draws nothing never needs it.
+        from scipy import ndimage
+
         weight = ndimage.gaussian_filter(weight, smooth_px)
         filled = ndimage.gaussian_filter(filled, smooth_px)
     # Beside the water (weight ~0) the depth is held at the water's farthest, so that the

@@ -21,7 +21,6 @@ from pathlib import Path
 import numpy as np
 import pybullet
 from pybullet_utils.bullet_client import BulletClient
-from scipy.spatial.transform import Rotation
 
 from pour_gym.assets import LabelledAsset, load_asset
 from pour_gym.errors import InputError, SimulationError
@@ -33,6 +32,7 @@ from pour_gym.io.stdio import redirect_stdout_fd
 from pour_gym.sim.camera import Camera, render
 from pour_gym.sim.census import Census, take_census
 from pour_gym.sim.raster import DRAWN_RADIUS
+from pour_gym.sim.rotations import as_quaternion, quaternion_to_matrix
 from pour_gym.sim.spawn import block, cavity_lattice, fill_lattice
 
 FLUIDS = ("pbf", "bullet")
@@ -50,7 +50,7 @@ def as_rotation(rotation) -> np.ndarray:
         return np.eye(3)
     r = np.asarray(rotation, dtype=np.float64)
     if r.shape == (4,):
-        return Rotation.from_quat(r).as_matrix()
+        return quaternion_to_matrix(r)
     if r.shape != (3, 3):
         raise InputError(f"a rotation is a 3x3 matrix or an (x, y, z, w) quaternion, not {r.shape}")
     return r
@@ -64,7 +64,7 @@ def container_field(asset: LabelledAsset, cache: str | Path | None = None) -> Si
         cache: folder of cached fields (default: the user cache).
     """
     return build_sdf(
-        asset.mesh, SDF_SPACING, SDF_MARGIN, cache_dir=cache if cache else cache_dir("sdf")
+        asset.surface, SDF_SPACING, SDF_MARGIN, cache_dir=cache if cache else cache_dir("sdf")
     )
 
 
@@ -120,7 +120,7 @@ def mesh_body(
         The body's id; move it with ``resetBasePositionAndOrientation``.
     """
     shape, visual = mesh_shapes(client, mesh, color, convex, collide)
-    quat = Rotation.from_matrix(rotation).as_quat().tolist()
+    quat = as_quaternion(rotation)
     return client.createMultiBody(0.0, shape, visual, np.asarray(position).tolist(), quat)
 
 
@@ -253,7 +253,7 @@ class World:
             convex = convex_parts(client, asset.mesh, self.sdf_cache) if collide else None
             self._shapes[key] = mesh_shapes(client, asset.mesh, color, convex, collide)
         shape, visual = self._shapes[key]
-        quat = Rotation.from_matrix(rotation).as_quat().tolist()
+        quat = as_quaternion(rotation)
         body = client.createMultiBody(0.0, shape, visual, np.asarray(position).tolist(), quat)
         if bullet:
             client.changeDynamics(body, -1, lateralFriction=self.fluid.friction)
@@ -328,7 +328,7 @@ class World:
         c = container.collider
         c.prev_rotation, c.prev_translation = c.rotation.copy(), c.translation.copy()
         if container.body is not None:
-            quat = Rotation.from_matrix(c.rotation).as_quat().tolist()
+            quat = as_quaternion(c.rotation)
             self.client.resetBasePositionAndOrientation(
                 container.body, c.translation.tolist(), quat
             )
