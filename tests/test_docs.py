@@ -51,3 +51,16 @@ def test_the_readme_is_one_page_with_the_two_commands():
     text = (ROOT / "README.md").read_text()
     assert len(text.splitlines()) <= 300
     assert "make demo" in text and "make test" in text
+
+
+def test_the_readme_quick_start_runs_as_printed():
+    # A newcomer's first minute: the block under "Quick start", run as it stands, shows a
+    # shipped policy succeeding on containers it never saw.
+    text = (ROOT / "README.md").read_text()
+    quick = text[text.index("## Quick start") :]
+    code = quick[quick.index("```python\n") + len("```python\n") :]
+    code = code[: code.index("```")]
+    probe = code + "assert result['mean']['success'] > 0, result['mean']\n"
+    done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert "'success': " in done.stdout
