@@ -193,6 +193,10 @@ class PourEnv(PourGymEnv):
     100; for curricula, see :class:`pour_gym.agents.curriculum.TrainingStarts`).
 
     ## Version History
+    Both versions are kept: v0 is the thesis's task, the setting of the shipped clone and
+    residual models, and v1 a set of defaults for learning from the reward, not a fix of
+    v0 (Gymnasium's "out of date" warning is silenced for Pour-v0).
+
     * v1: the same class, task and physics as v0 with the defaults under which a standard
       learner learns the task from its reward (docs: learning from the reward):
       ``tilt_control="angle"`` (a zero action holds 57.5 deg, so exploration reaches the

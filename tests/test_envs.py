@@ -320,3 +320,17 @@ def test_experiments_at_tiny_size(tmp_path):
         assert all(0.5 <= v <= 1.0 for v in doc["auc"].values())
         assert (tmp_path / f"roc_{which}.png").stat().st_size > 10_000
         assert (tmp_path / f"dataset_{which}.npz").is_file()
+
+
+def test_making_pour_v0_warns_of_nothing():
+    # v0 and v1 are both kept on purpose: Gymnasium's "out of date" warning would send
+    # v0's users to v1 (make demo printed it among its results).
+    import warnings
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        import pour_gym.envs.registry as registry
+
+        registry.register_envs()  # the filter, as importing pour_gym installs it
+        gym.make("PourGym/Pour-v0", objects="red_cup").close()
+    assert not [w for w in caught if "out of date" in str(w.message)]
