@@ -421,3 +421,20 @@ def test_keep_best_of_a_finished_curve_takes_that_points_checkpoint(tmp_path):
     with pytest.raises(InputError, match="checkpoint-every"):
         keep_best_of_curve(run, POUR)
     assert keep_best_of_curve(tmp_path, POUR) is None  # no curve
+
+
+def test_loading_a_model_file_warns_to_trust_its_source(tmp_path):
+    # A model.zip and its vecnormalize.pkl are pickles: loading runs their author's code.
+    # The shipped models load quietly; anything else says so.
+    import shutil
+    import warnings
+
+    from pour_gym.agents.training.runs import MODELS, load_run
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        load_run("pour-v0-red-cup-features")
+    copy = tmp_path / "model"
+    shutil.copytree(MODELS / "pour-v0-red-cup-features", copy)
+    with pytest.warns(UserWarning, match="sources you trust"):
+        load_run(copy / "model.zip")

@@ -14,6 +14,7 @@ from __future__ import annotations
 import json
 import pickle
 import re
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -91,6 +92,16 @@ def load_run(model_path: str | Path, algo: str | None = None) -> Run:
     name = config.get("algo", algo)
     if name is None:
         raise InputError(f"which algorithm made {path.name}? pass --algo (sac, ppo, td3, tqc)")
+    if MODELS.resolve() not in path.resolve().parents:
+        # A model file is a zip of pickles and its normaliser a pickle: loading one runs
+        # whatever code its author put in it. Said once per process (Python's default
+        # filter shows a warning once per place).
+        warnings.warn(
+            f"loading {path} unpickles it (and {NORMALISER} beside it): load only models "
+            "from sources you trust",
+            UserWarning,
+            stacklevel=2,
+        )
     model = algorithm(name).load(path, device="cpu")
     normaliser = None
     stats = path.parent / NORMALISER
