@@ -111,7 +111,9 @@ def train(config: TrainConfig) -> dict:
     ckpt_dir.mkdir(parents=True, exist_ok=True)
     record = {
         **dataclasses.asdict(config),
-        "out": str(out),
+        # The run's folder by name only: the record travels with the folder, and a shipped
+        # model's config must not carry the training machine's paths.
+        "out": out.name,
         "hyperparameters": {k: v for k, v in params.items() if k != "replay_buffer_class"},
         "demonstrations": dataclasses.asdict(demos_cfg) if demos_cfg else None,
         "n_envs": recipe.n_envs,
