@@ -359,7 +359,12 @@ class PourEnv(PourGymEnv):
         if perception == "scan":
             # Every container perceived now (cached after the first time), so that one the
             # pipeline cannot take is refused here, not at some reset in the middle of a run.
-            for name in dict.fromkeys(self.sources + self.targets):
+            # The first time takes 10-30 s a container: a bar shows it (after 2 s, so that
+            # perceptions read from the cache show nothing).
+            from tqdm.auto import tqdm
+
+            names = list(dict.fromkeys(self.sources + self.targets))
+            for name in tqdm(names, desc="perceiving containers", unit="container", delay=2.0):
                 self.seen(name)
         self.source_particles = None if source_particles is None else int(source_particles)
         self.amount_range = (int(lo), int(hi))
