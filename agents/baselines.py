@@ -10,11 +10,11 @@ checkpoints and replay buffers are hundreds of MB).
 A row is one way of training (environment, algorithm, observation mode, whether it learnt
 from the reward alone, cloned the expert, or cloned then learnt, and which model of a run
 was evaluated: the last step's or, with ``--keep-best``, the best curve point's): its seeds' mean
-of each metric, with a 95 % percentile-bootstrap interval over the seeds
-(``scipy.stats.bootstrap``). rliable (Agarwal et al. 2021) is the field's tool for
-intervals over runs and tasks; its stratified bootstrap over one task's seeds is this
-percentile bootstrap, and its dependencies (arch, statsmodels, seaborn) would be
-pour-gym's only use of them.
+of each metric, with a 95 % bootstrap interval over the seeds, and over the seeds and the
+unseen containers, rliable's aggregates (:mod:`pour_gym.agents.aggregate`): the
+interquartile mean of the return normalised between a seeded random policy (0) and the
+scripted expert (1) on the same episodes, and the probability that a seed beats the expert
+on a container, each with a stratified-bootstrap interval.
 """
 
 from __future__ import annotations
@@ -26,13 +26,19 @@ from pathlib import Path
 
 import numpy as np
 
+from pour_gym.agents.aggregate import (
+    bootstrap_interval,
+    iqm,
+    mean_score,
+    normalised,
+    probability_of_improvement,
+)
 from pour_gym.errors import InputError
 from pour_gym.report.tables import markdown_table
 
 SUMMARIES = Path("docs/baselines/runs")
 REPORT = Path("docs/baselines.md")
 CURVES = Path("docs/baselines/curves.png")
-CONFIDENCE = 0.95
 METRICS = {
     "trained_success": "success, trained on",
     "unseen_success": "success, unseen",
@@ -137,12 +143,21 @@ def run_summary(run_dir: Path) -> dict:
     }
 
 
-def reference_summary(eval_path: Path, trained_on: tuple[str, ...] = ("red_cup",)) -> dict:
-    """A reference row from ``pour-gym evaluate scripted --json``.
+# What a reference row's evaluation was of (``pour-gym evaluate <policy> --json``): its
+# run's name's start, its algorithm column and how it learnt.
+REFERENCES = {
+    "scripted": ("scripted-expert", "scripted", "hand-written (reference)"),
+    "random": ("random", "random", "uniform random (reference)"),
+}
 
-    The expert the runs are measured against, on the same containers and seeds as their
-    evaluations. Its rows for ``trained_on`` (the runs' training container) count as
-    "trained on", the others as unseen: its unseen means are over the runs' unseen ones.
+
+def reference_summary(eval_path: Path, trained_on: tuple[str, ...] = ("red_cup",)) -> dict:
+    """A reference row from ``pour-gym evaluate scripted --json`` (or ``random``).
+
+    The expert the runs are measured against, or the seeded random policy a normalised
+    score calls 0, on the same containers and seeds as their evaluations. Its rows for
+    ``trained_on`` (the runs' training container) count as "trained on", the others as
+    unseen: its unseen means are over the runs' unseen ones.
 
     Raises:
         InputError: a file that is not an evaluation's JSON.
@@ -151,19 +166,21 @@ def reference_summary(eval_path: Path, trained_on: tuple[str, ...] = ("red_cup",
     try:
         result = json.loads(eval_path.read_text())
         rows = [{**r, "trained_on": r["object"] in trained_on} for r in result["rows"]]
+        prefix, algo, kind = REFERENCES[result.get("policy", "scripted")]
     except (OSError, ValueError, KeyError, TypeError):
         raise InputError(
             f"{eval_path} is not an evaluation: write one with "
-            "`pour-gym evaluate scripted --objects all,real --episodes 10 --seed 10000 --json`"
+            "`pour-gym evaluate scripted --objects all,real --episodes 10 --seed 10000 --json` "
+            "(or random)"
         ) from None
     env = result["env"]
     return {
-        "run": f"scripted-expert-{env.split('/')[-1].lower()}",
+        "run": f"{prefix}-{env.split('/')[-1].lower()}",
         "env": env,
-        "algo": "scripted",
-        "obs_mode": "features",
-        "kind": "hand-written (reference)",
-        "model": "deterministic",
+        "algo": algo,
+        "obs_mode": "features" if algo == "scripted" else "-",
+        "kind": kind,
+        "model": "deterministic" if algo == "scripted" else "seeded per episode",
         "seed": 0,
         "timesteps": 0,
         "wall_seconds": None,
@@ -177,17 +194,62 @@ def reference_summary(eval_path: Path, trained_on: tuple[str, ...] = ("red_cup",
 
 
 def interval(values: list[float]) -> tuple[float, float] | None:
-    """The 95 % percentile-bootstrap interval of the mean over seeds (None for one seed)."""
-    from scipy.stats import bootstrap
-
-    x = np.asarray(values, dtype=np.float64)
-    if len(x) < 2:
+    """The 95 % bootstrap interval of the mean over seeds (None for one seed)."""
+    if len(values) < 2:
         return None
-    if np.ptp(x) == 0:  # every seed the same: the interval is that value
-        return float(x[0]), float(x[0])
-    res = bootstrap((x,), np.mean, confidence_level=CONFIDENCE, method="percentile",
-                    n_resamples=10_000, random_state=0)  # fmt: skip
-    return float(res.confidence_interval.low), float(res.confidence_interval.high)
+    return bootstrap_interval(mean_score, np.asarray(values, dtype=np.float64)[:, None])
+
+
+def unseen_returns(summaries: list[dict], objects: list[str]) -> np.ndarray:
+    """``(runs, tasks)``: each run's mean return on each of ``objects`` (its unseen ones)."""
+    table = []
+    for s in summaries:
+        by_object = {r["object"]: r["return"] for r in s["eval_rows"] if not r["trained_on"]}
+        table.append([by_object[o] for o in objects])
+    return np.asarray(table, dtype=np.float64)
+
+
+def aggregates(group: list[dict], references: dict[str, dict]) -> dict | None:
+    """Rliable's aggregates of a row over its seeds and unseen containers.
+
+    Args:
+        group: the row's run summaries (one per seed).
+        references: this env's ``"scripted"`` and ``"random"`` reference summaries.
+
+    Returns:
+        ``{"iqm": (value, interval), "improvement": (value, interval), "tasks": n}``, or
+        None where a reference is missing or evaluated other containers, or where the
+        row's runs were evaluated under reward weights of their own (their returns are in
+        other units than the references').
+    """
+    if set(references) != {"scripted", "random"}:
+        return None
+    if any(k.endswith("_weight") for s in group for k in s.get("env_kwargs", {})):
+        return None
+    objects = sorted(r["object"] for r in group[0]["eval_rows"] if not r["trained_on"])
+    try:
+        scores = unseen_returns(group, objects)
+        low = unseen_returns([references["random"]], objects)[0]
+        high = unseen_returns([references["scripted"]], objects)
+    except KeyError:  # the runs and the references saw different containers
+        return None
+    x = normalised(scores, low, high[0])
+    expert = np.ones((1, len(objects)))
+    return {
+        "iqm": (float(iqm(x)), bootstrap_interval(iqm, x)),
+        "improvement": (
+            float(probability_of_improvement(x, expert)),
+            bootstrap_interval(probability_of_improvement, x, expert),
+        ),
+        "tasks": len(objects),
+    }
+
+
+def _aggregate_cell(value: tuple[float, tuple[float, float]] | None) -> str:
+    if value is None:
+        return "-"
+    v, (lo, hi) = value
+    return f"{v:.2f} [{lo:.2f}, {hi:.2f}]"
 
 
 def _group_key(s: dict) -> tuple[str, str, str, str, str]:
@@ -243,14 +305,14 @@ def _plot(groups: dict[tuple, list[dict]], path: Path) -> Path:
         label = f"{env.split('/')[-1]} {algo.upper()} {mode}, {kind}{how} ({seeds})"
         line = ax.plot(steps, ys.mean(axis=0), "o-", label=label, markersize=3)[0]
         if len(curves) > 1:
-            ax.fill_between(steps, ys.min(axis=0), ys.max(axis=0), color=line.get_color(),
-                            alpha=0.2)  # fmt: skip
+            band = np.array([interval(list(ys[:, k])) for k in range(len(steps))])
+            ax.fill_between(steps, band[:, 0], band[:, 1], color=line.get_color(), alpha=0.2)
     # Log steps: a clone's 2000 steps and a learner's 400k on one axis.
     ax.set_xscale("log")
     ax.set_xlabel("environment steps")
     ax.set_ylabel("success on the training container\n(as the row's model is scored)")
     ax.set_ylim(-0.02, 1.02)
-    ax.set_title("Learning curves: mean over seeds, band: their range", fontsize=10)
+    ax.set_title("Learning curves: mean over seeds, band: its 95 % bootstrap interval", fontsize=10)
     ax.legend(fontsize=7, loc="center left")
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -261,7 +323,7 @@ def _plot(groups: dict[tuple, list[dict]], path: Path) -> Path:
 
 def baselines_report(
     runs: list[str | Path] = (),
-    reference: str | Path | None = None,
+    reference: str | Path | list[str | Path] | None = None,
     summaries: Path = SUMMARIES,
     report: Path = REPORT,
     curves: Path = CURVES,
@@ -271,15 +333,16 @@ def baselines_report(
     Args:
         runs: ``train.py`` run directories (or folders of them) to add; may be empty to
             regenerate from the committed summaries.
-        reference: the scripted expert's evaluation (``pour-gym evaluate scripted
-            --json``) to add as a reference row (:func:`reference_summary`).
+        reference: evaluations of the scripted expert and of the random policy
+            (``pour-gym evaluate scripted|random --json``), each added as a reference row
+            (:func:`reference_summary`); both, per env, give the rows' aggregates.
         summaries: the folder of run summaries.
         report: the markdown report to write.
         curves: the learning curves' PNG.
 
     Returns:
         ``{"rows": [{env, algo, obs_mode, kind, model, seeds, each metric's mean and interval,
-        timesteps, wall minutes}]}``.
+        timesteps, wall minutes, iqm and improvement (value, interval) or None}]}``.
 
     Raises:
         InputError: a folder that holds no finished run, or no summaries at all.
@@ -296,17 +359,23 @@ def baselines_report(
         for d in dirs:
             s = run_summary(d)
             (summaries / f"{s['run']}.json").write_text(json.dumps(s, indent=1) + "\n")
-    if reference is not None:
-        s = reference_summary(Path(reference))
+    given_refs = [reference] if isinstance(reference, str | Path) else list(reference or [])
+    for ref in given_refs:
+        s = reference_summary(Path(ref))
         (summaries / f"{s['run']}.json").write_text(json.dumps(s, indent=1) + "\n")
     found = [json.loads(p.read_text()) for p in sorted(summaries.glob("*.json"))]
     if not found:
         raise InputError(f"no run summaries in {summaries}: pass --runs DIR")
+    references: dict[str, dict[str, dict]] = {}
+    for s in found:
+        if s["algo"] in REFERENCES:
+            references.setdefault(s["env"], {})[s["algo"]] = s
     groups: dict[tuple, list[dict]] = {}
     for s in found:
         groups.setdefault(_group_key(s), []).append(s)
     header = ["env", "algorithm", "observation", "learnt from", "model", "seeds",
-              *METRICS.values(), "env steps", "wall time (min)"]  # fmt: skip
+              *METRICS.values(), "normalised return, unseen (IQM)",
+              "P(above the expert), unseen", "env steps", "wall time (min)"]  # fmt: skip
     table, rows = [], []
     for key, group in sorted(groups.items()):
         env, algo, mode, kind, model = key
@@ -321,17 +390,27 @@ def baselines_report(
             cells.append(_cell(row[name], 2 if "success" in name else 1))
         wall = [s["wall_seconds"] / 60 for s in group if s["wall_seconds"] is not None]
         steps = sorted({s["timesteps"] for s in group})
-        row.update(timesteps=steps, wall_minutes=wall)
+        agg = aggregates(group, references.get(env, {}))
+        row.update(
+            timesteps=steps,
+            wall_minutes=wall,
+            iqm=agg and agg["iqm"],
+            improvement=agg and agg["improvement"],
+        )
         rows.append(row)
         table.append(
             [
                 env.split("/")[-1],
-                algo.upper(),
+                # A clone (no update of the algorithm's own) is behaviour cloning, whatever
+                # network it was cloned into (runs before --algo bc record tqc).
+                "BC" if kind == "clone" else algo.upper(),
                 mode,
                 kind,
                 model,
                 str(len(group)),
                 *cells,
+                _aggregate_cell(row["iqm"]),
+                _aggregate_cell(row["improvement"]),
                 "/".join(f"{t:,}" for t in steps) if any(steps) else "-",
                 _minutes(wall, len(group)),
             ]
@@ -343,15 +422,27 @@ def baselines_report(
         "<!-- Written by `pour-gym report baselines` from docs/baselines/runs/*.json. -->",
         "",
         "Each row is one way of training on the red cup, run with several seeds; each cell "
-        "is the mean over the seeds with a 95 % percentile-bootstrap interval over them in "
-        "brackets (`scipy.stats.bootstrap`; one seed: no interval). *Trained on*: the "
-        "training container's evaluation episodes; *unseen*: the mean over the containers "
-        "the run never trained on, each as source and target, at seeds training never used. "
-        "Amount error is |poured - target| in particles (0.125 ml each). A *hand-written "
-        "(reference)* row is the scripted expert on the same containers and seeds (it is "
-        "not trained: *trained on* is the red cup).",
+        "is the mean over the seeds with a 95 % stratified-bootstrap interval over them in "
+        "brackets (one seed: no interval). *Trained on*: the training container's "
+        "evaluation episodes; *unseen*: the mean over the containers the run never trained "
+        "on, each as source and target, at seeds training never used. Amount error is "
+        "|poured - target| in particles (0.125 ml each). A *hand-written (reference)* row "
+        "is the scripted expert on the same containers and seeds (it is not trained: "
+        "*trained on* is the red cup); a *uniform random (reference)* row, actions drawn "
+        "uniformly from the action space, seeded per episode.",
         "",
-        markdown_table(header, table, align="lllllr" + "r" * (len(METRICS) + 2)),
+        "The last two metrics follow rliable (Agarwal et al., 2021; "
+        "`pour_gym.agents.aggregate`), over the seeds x unseen containers: *normalised "
+        "return* is each seed's mean return on a container as a share of the way from the "
+        "random policy's (0) to the scripted expert's (1) on the same episodes (Minari's "
+        "`ref_min_score` / `ref_max_score`), its interquartile mean (the mean of the middle "
+        "half); *P(above the expert)* is the chance that a seed's return on a container "
+        "beats the expert's (ties count a half), averaged over the containers; each with a "
+        "95 % stratified-bootstrap interval (seeds resampled within each container). Above "
+        "1 and above 0.5: beyond the expert. A row trained and evaluated with reward "
+        "weights of its own (the residual's) has none: its returns are in other units.",
+        "",
+        markdown_table(header, table, align="lllllr" + "r" * (len(METRICS) + 4)),
         "",
         f"![learning curves]({os.path.relpath(curves, Path(report).parent)})",
         "",

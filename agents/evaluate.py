@@ -42,10 +42,11 @@ class LoadedPolicy:
 def load_policy(
     name: str, env_id: str | None = None, algo: str | None = None, actions: str | None = None
 ) -> LoadedPolicy:
-    """A policy by name: ``"scripted"``, a policy search's ``search.json``, or a model.
+    """A policy by name: ``"scripted"``, ``"random"``, a search's ``search.json``, or a model.
 
     Args:
-        name: ``"scripted"``, a ``search.json``, a shipped model's name
+        name: ``"scripted"``, ``"random"`` (uniform actions, seeded per episode: the
+            reference of a normalised score's 0), a ``search.json``, a shipped model's name
             (``pour-v0-red-cup-features``) or a ``model.zip``.
         env_id: the environment (default: the model's, or Pour-v0 for the scripted ones).
         algo: the algorithm of a model without a ``config.json``.
@@ -62,6 +63,16 @@ def load_policy(
 
     if actions not in (None, "mean", "sampled"):
         raise InputError(f"actions are 'mean' or 'sampled', not {actions!r}")
+    if name == "random":
+        from pour_gym.agents.rollout import RandomPolicy
+
+        if actions is not None:
+            raise InputError("--actions is for a trained model; the random policy has none")
+        env_id = env_id or POUR_V0
+        env = make(env_id)
+        space = env.action_space
+        env.close()
+        return LoadedPolicy(RandomPolicy(space.low, space.high), env_id)
     if name == "scripted" or name.endswith(".json"):
         if actions is not None:
             raise InputError("--actions is for a trained model; the scripted policy has no noise")

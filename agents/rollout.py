@@ -203,3 +203,28 @@ class SampledPolicy:
             torch.manual_seed(int(self.rng.integers(2**62)))
             action, _ = self.predictor.predict(x, deterministic=False)
         return action
+
+
+class RandomPolicy:
+    """Actions drawn uniformly from a box action space, from a seed per episode.
+
+    The reference a normalised score calls 0 (Minari's ``ref_min_score``): the same
+    episodes as a policy's evaluation, acted on at random, the same for the same seeds.
+
+    Args:
+        low: the action space's lower bounds.
+        high: its upper bounds.
+    """
+
+    def __init__(self, low: np.ndarray, high: np.ndarray):
+        self.low = np.asarray(low, dtype=np.float64)
+        self.high = np.asarray(high, dtype=np.float64)
+        self.rng = np.random.default_rng(0)
+
+    def reset(self, seed: int | None = None) -> None:
+        """Start an episode: its actions from ``seed``."""
+        self.rng = np.random.default_rng(seed)
+
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        """A uniform action (the observation is not read)."""
+        return self.rng.uniform(self.low, self.high).astype(np.float32)

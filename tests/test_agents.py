@@ -130,7 +130,7 @@ def test_pour_recipe_trains_and_its_model_evaluates_on_a_user_mesh(tmp_path):
     out = tmp_path / "pour"
     options = (
         "--env", "PourGym/Pour-v0",
-        "--algo", "tqc",
+        "--algo", "bc",
         "--objects", "red_cup",
         "--timesteps", "200",
         "--eval-objects", "red_cup",
@@ -151,7 +151,7 @@ def test_pour_recipe_trains_and_its_model_evaluates_on_a_user_mesh(tmp_path):
                  "curve.png"):  # fmt: skip
         assert (out / name).is_file(), name
     config = json.loads((out / "config.json").read_text())
-    assert config["algo"] == "tqc" and config["n_envs"] == 2
+    assert config["algo"] == "bc" and config["n_envs"] == 2
     demos = json.loads((out / "demonstrations.json").read_text())
     assert demos["episodes_succeeded"] >= 1 and demos["transitions"] > 50
     # The containers' sizes never vary on one cup, and the tilt was asked to be hidden (two

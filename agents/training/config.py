@@ -26,6 +26,9 @@ ALGORITHMS = {
     "ppo": "stable_baselines3:PPO",
     "td3": "stable_baselines3:TD3",
     "tqc": "sb3_contrib:TQC",
+    # Behaviour cloning: TQC's actor cloned from the scripted expert's demonstrations, with
+    # TQC's own updates off in its recipe (gradient_steps: 0). A TQC model on disk.
+    "bc": "sb3_contrib:TQC",
 }
 
 

@@ -97,8 +97,8 @@ def train(config: TrainConfig) -> dict:
     params = dict(recipe.hyperparameters)
     demos_cfg = recipe.demonstrations
     if demos_cfg:
-        if config.algo not in ("sac", "tqc"):
-            raise InputError(f"demonstrations need sac or tqc, not {config.algo}")
+        if config.algo not in ("sac", "tqc", "bc"):
+            raise InputError(f"demonstrations need sac, tqc or bc, not {config.algo}")
         from pour_gym.agents.demonstrations import DemoReplayBuffer
 
         params["replay_buffer_class"] = DemoReplayBuffer

@@ -106,10 +106,11 @@ def build_parser() -> argparse.ArgumentParser:
         help="generalisation, baselines: train.py run directories or folders of them",
     )  # fmt: skip
     p.add_argument(
-        "--reference",
-        help="baselines: the scripted expert's evaluation (pour-gym evaluate scripted --json), "
-        "added as a reference row",
-    )
+        "--reference", nargs="+", default=[],
+        help="baselines: evaluations of the scripted expert and of the random policy "
+        "(pour-gym evaluate scripted|random --json), each added as a reference row; with "
+        "both, the rows' normalised returns and probability of improvement",
+    )  # fmt: skip
     p.add_argument(
         "--out", help="generalisation: folder for report.md and plots; sensors: for the PNGs"
     )
@@ -234,7 +235,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "policy",
         help="an SB3 model.zip from train.py, the name of a shipped model (e.g. "
-        "pour-v0-red-cup-features), 'scripted', or a search.json",
+        "pour-v0-red-cup-features), 'scripted', 'random' (uniform actions, seeded per "
+        "episode), or a search.json",
     )
     p.add_argument("--env", help="environment id (default: the model's, or Pour-v0)")
     p.add_argument("--objects", default="all", help="split or comma-separated containers")

@@ -493,6 +493,7 @@ def cmd_evaluate(args: argparse.Namespace) -> Output:
         source_objects=expand_containers(args.source_objects) if args.source_objects else None,
         target_objects=expand_containers(args.target_objects) if args.target_objects else None,
     )
+    result["policy"] = args.policy  # what a report's reference row says it was
     return (result, lambda: evaluation_table(result))
 
 
