@@ -245,6 +245,13 @@ def aggregates(group: list[dict], references: dict[str, dict]) -> dict | None:
     }
 
 
+def _algorithm(algo: str, kind: str) -> str:
+    """A row's algorithm as the report names it."""
+    # A clone (no update of the algorithm's own) is behaviour cloning, whatever network it
+    # was cloned into (runs from before --algo bc record tqc).
+    return "BC" if kind == "clone" else algo.upper()
+
+
 def _aggregate_cell(value: tuple[float, tuple[float, float]] | None) -> str:
     if value is None:
         return "-"
@@ -302,7 +309,7 @@ def _plot(groups: dict[tuple, list[dict]], path: Path) -> Path:
         env, algo, mode, kind, model = key
         seeds = f"{len(curves)} seed" + ("s" if len(curves) > 1 else "")
         how = ", sampled" if "sampled" in model else ""
-        label = f"{env.split('/')[-1]} {algo.upper()} {mode}, {kind}{how} ({seeds})"
+        label = f"{env.split('/')[-1]} {_algorithm(algo, kind)} {mode}, {kind}{how} ({seeds})"
         line = ax.plot(steps, ys.mean(axis=0), "o-", label=label, markersize=3)[0]
         if len(curves) > 1:
             band = np.array([interval(list(ys[:, k])) for k in range(len(steps))])
@@ -401,9 +408,7 @@ def baselines_report(
         table.append(
             [
                 env.split("/")[-1],
-                # A clone (no update of the algorithm's own) is behaviour cloning, whatever
-                # network it was cloned into (runs before --algo bc record tqc).
-                "BC" if kind == "clone" else algo.upper(),
+                _algorithm(algo, kind),
                 mode,
                 kind,
                 model,
