@@ -37,7 +37,7 @@ from tqdm import tqdm
 from pour_gym.agents.rollout import Step, rollout
 from pour_gym.agents.scripted import ScriptedPourPolicy
 from pour_gym.envs import make, task_of
-from pour_gym.envs.pour import UPRIGHT_BAND
+from pour_gym.envs.rules import tilt_action
 from pour_gym.errors import InputError
 
 
@@ -91,7 +91,7 @@ def rate_as_angle(rate: float, env) -> float:
         The angle action in [-1, 1].
     """
     goal = env.tilt + float(rate) * env.max_tilt_rate * env.dt
-    action = 2.0 * (goal + UPRIGHT_BAND) / (env.max_tilt + UPRIGHT_BAND) - 1.0
+    action = tilt_action(goal, env.max_tilt)
     return float(np.clip(action, -1.0, 1.0))
 
 

@@ -210,7 +210,7 @@ def evaluation_table(result: dict) -> str:
         lines.append(f"\nsuccess on containers never trained on: {m['success_unseen']:.2f}")
     if pours:
         lines.append(
-            "\nfailures: the share of episodes that failed, by why (envs.task.POUR_OUTCOMES)"
+            "\nfailures: the share of episodes that failed, by why (envs.rules.POUR_OUTCOMES)"
         )
     lines.append("\n\\* trained on this object")
     return "\n".join(lines)

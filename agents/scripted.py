@@ -17,7 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pour_gym.envs.pour import FEATURE_NAMES, TILT_CONTROLS, UPRIGHT_BAND
+from pour_gym.envs.pour import FEATURE_NAMES, TILT_CONTROLS
+from pour_gym.envs.rules import tilt_action
 
 _I = {name: k for k, name in enumerate(FEATURE_NAMES)}
 
@@ -114,9 +115,7 @@ class ScriptedPourPolicy:
         action = self._rate_action(np.asarray(obs, dtype=np.float64))
         if self.tilt_control == "angle":
             goal = 90.0 * obs[_I["tilt"]] + action[3] * self.max_tilt_rate * self.dt
-            action[3] = np.clip(
-                2.0 * (goal + UPRIGHT_BAND) / (self.max_tilt + UPRIGHT_BAND) - 1.0, -1.0, 1.0
-            )
+            action[3] = np.clip(tilt_action(goal, self.max_tilt), -1.0, 1.0)
         return action
 
     def _rate_action(self, o: np.ndarray) -> np.ndarray:

@@ -9,6 +9,7 @@ from gymnasium.utils import EzPickle
 from pour_gym.envs.base import PourGymEnv
 from pour_gym.envs.holders import make_holder
 from pour_gym.envs.observations import VECTOR_MODES, parse_obs_mode, vector_mode
+from pour_gym.envs.rules import amount_terms, episode_end, tilt_goal, tolerance
 from pour_gym.envs.task import POUR
 from pour_gym.features import ContainerGeometry, fluid_features, relative_distance_height
 from pour_gym.fluid.pbf import PBFConfig
@@ -56,15 +57,11 @@ STATE_NAMES = (
     "target_amount",
 )
 OBS_LIMIT = 10.0
-UPRIGHT_DEG = 3.0
 RESTING_SPEED = 0.05  # m/s: a particle in no container moving slower has spilled
 # The fill left over when the fill is sized to the task, particles.
 FILL_MARGIN = 100
 # Where the aim shaping draws the lip: this many target rim radii before its centre.
 AIM_OFFSET = 0.5
-# tilt_control="angle": the action's tilt range reaches this far below upright (deg), so a
-# band of actions, not one value, sets the source upright.
-UPRIGHT_BAND = 20.0
 TILT_CONTROLS = ("rate", "angle")
 
 
@@ -449,7 +446,7 @@ class PourEnv(PourGymEnv):
         if not 1 <= amount <= self.fill:
             raise ValueError(f"target_amount must be in [1, {self.fill}] particles, not {amount}")
         self.target_amount = amount
-        self.tolerance = max(5, round(0.1 * self.target_amount))
+        self.tolerance = tolerance(self.target_amount)
         self.world.fill(self.source, particles=self.fill)
         # The camera looks across the way from the source to the target.
         mid = 0.5 * (self.lip + self.target_pos)
@@ -476,19 +473,13 @@ class PourEnv(PourGymEnv):
         out = self.fill - c["in_source"]
         self._out_run = self._out_run + 1 if out >= self.pour_threshold else 0
         self._poured_any = self._poured_any or self._out_run >= self.pour_steps
-        settled = c["in_flight"] == 0
-        upright = self.tilt < UPRIGHT_DEG
         failure = self.holder.failure(self)
-        ended = settled and ((self._poured_any and upright) or c["in_source"] == 0)
-        terminated = bool(failure or ended)
-        success = terminated and not failure and self._succeeded()
-        t = self.target_amount
+        terminated, success = episode_end(
+            c, self.tilt, self._poured_any, failure, self.target_amount, self.tolerance
+        )
         potentials = self._potential()
         terms = {
-            "progress": (min(c["poured"], t) - min(prev["poured"], t)) / t,
-            "overshoot": -(max(c["poured"] - t, 0) - max(prev["poured"] - t, 0)) / t,
-            "spill": -(c["spilled"] - prev["spilled"]) / t,
-            "success": float(success),
+            **amount_terms(prev, c, self.target_amount, success),
             "time": -1.0,
             "aim": potentials["aim"] - self._potentials["aim"],
             "upright": potentials["upright"] - self._potentials["upright"],
@@ -526,7 +517,7 @@ class PourEnv(PourGymEnv):
         if self.tilt_control == "rate":
             tilt = self.tilt + a[3] * most
         else:
-            goal = -UPRIGHT_BAND + 0.5 * (a[3] + 1.0) * (self.max_tilt + UPRIGHT_BAND)
+            goal = tilt_goal(a[3], self.max_tilt)
             tilt = self.tilt + np.clip(goal - self.tilt, -most, most)
         return lip, float(np.clip(tilt, 0.0, self.max_tilt))
 
@@ -569,14 +560,6 @@ class PourEnv(PourGymEnv):
         done = c["poured"] + c["in_flight"] >= self.target_amount - self.tolerance
         tilt = self.tilt / 90.0
         return {"aim": aim, "upright": -tilt if done else 0.0, "tilt": 0.0 if done else tilt}
-
-    def _succeeded(self) -> bool:
-        c = self._counts
-        return (
-            abs(c["poured"] - self.target_amount) <= self.tolerance
-            and c["spilled"] == 0
-            and self.tilt < UPRIGHT_DEG
-        )
 
     def _sensor_frame_pose(self) -> tuple[np.ndarray, np.ndarray]:
         """The source's lip frame: its rotation, with the lip as origin."""

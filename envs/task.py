@@ -14,6 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pour_gym.envs.rules import POUR_OUTCOMES, outcome
+
 
 @dataclass(frozen=True)
 class Task:
@@ -68,20 +70,7 @@ class Task:
             One of :data:`POUR_OUTCOMES` (the first that applies, in its order); None for
             a task that does not pour.
         """
-        if not self.pours:
-            return None
-        if info["is_success"]:
-            return "success"
-        if info["spilled"] > 0:
-            return "spilled"
-        error = info["poured"] - info["target_amount"]
-        if error > info["tolerance"]:
-            return "overshot"
-        if not info["poured_any"]:
-            return "never_poured"
-        if error < -info["tolerance"]:
-            return "under_poured"
-        return "unfinished"
+        return outcome(info) if self.pours else None
 
     def outcome_shares(self, infos) -> dict[str, float]:
         """The share of episodes (their last infos) per outcome, as ``outcome_<name>``."""
@@ -97,18 +86,6 @@ class Task:
             they had tunnelled into in the last step); the others: nothing.
         """
         return {"corrections": float(info["fluid_corrections"])} if self.pours else {}
-
-
-# How a pouring episode ended, first match wins (Task.outcome); README: "why episodes fail".
-POUR_OUTCOMES = {
-    "success": "the amount within tolerance, nothing spilled, the source upright",
-    "spilled": "a particle came to rest outside both containers",
-    "overshot": "more than the target amount plus the tolerance in the target",
-    "never_poured": "no pour happened (the source never tilted far enough over the target)",
-    "under_poured": "poured, but stopped short of the target amount less the tolerance",
-    "unfinished": "the amount right and nothing spilled, but the episode was cut short "
-    "before the source stood upright with nothing in flight",
-}
 
 
 def mean_metrics(episodes: Iterable[dict[str, float]]) -> dict[str, float]:

@@ -1,0 +1,123 @@
+"""The pouring task's rules, in one place.
+
+The tolerance, when an episode ends, success, why it ended, the amount's reward terms, and
+how the tilt action is encoded: pure functions of the counts a step takes (particles in
+the source, in the target, in flight and spilled), the tilt and the holder's failure.
+:class:`~pour_gym.envs.pour.PourEnv` steps by them, :class:`~pour_gym.envs.task.Task`
+scores episodes by them, and the scripted policy and its demonstrations encode their
+tilts by them.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+# The source counts as upright below this tilt (deg).
+UPRIGHT_DEG = 3.0
+# tilt_control="angle": the action's tilt range reaches this far below upright (deg), so a
+# band of actions, not one value, sets the source upright.
+UPRIGHT_BAND = 20.0
+
+# How a pouring episode ended, first match wins (outcome); README: "why episodes fail".
+POUR_OUTCOMES = {
+    "success": "the amount within tolerance, nothing spilled, the source upright",
+    "spilled": "a particle came to rest outside both containers",
+    "overshot": "more than the target amount plus the tolerance in the target",
+    "never_poured": "no pour happened (the source never tilted far enough over the target)",
+    "under_poured": "poured, but stopped short of the target amount less the tolerance",
+    "unfinished": "the amount right and nothing spilled, but the episode was cut short "
+    "before the source stood upright with nothing in flight",
+}
+
+
+def tolerance(target_amount: int) -> int:
+    """How far the poured amount may miss the target, particles: 10 %, at least 5."""
+    return max(5, round(0.1 * target_amount))
+
+
+def succeeded(poured: int, spilled: int, tilt: float, target_amount: int, tol: int) -> bool:
+    """The amount within the tolerance, nothing spilled, the source upright."""
+    return abs(poured - target_amount) <= tol and spilled == 0 and tilt < UPRIGHT_DEG
+
+
+def episode_end(
+    counts: Mapping[str, int],
+    tilt: float,
+    poured_any: bool,
+    failure: object,
+    target_amount: int,
+    tol: int,
+) -> tuple[bool, bool]:
+    """Whether a step ends its episode, and whether in success.
+
+    An episode ends when the holder failed, or with nothing in flight once the source
+    poured and stands upright again, or is empty.
+
+    Args:
+        counts: the step's ``in_source``, ``poured``, ``in_flight`` and ``spilled``.
+        tilt: the source's tilt, deg.
+        poured_any: a pour happened in the episode (the env's pour threshold and steps).
+        failure: the holder's failure (anything true: failed).
+        target_amount: the target amount, particles.
+        tol: :func:`tolerance` of it.
+
+    Returns:
+        (terminated, success).
+    """
+    settled = counts["in_flight"] == 0
+    upright = tilt < UPRIGHT_DEG
+    ended = settled and ((poured_any and upright) or counts["in_source"] == 0)
+    terminated = bool(failure or ended)
+    success = (
+        terminated
+        and not failure
+        and succeeded(counts["poured"], counts["spilled"], tilt, target_amount, tol)
+    )
+    return terminated, success
+
+
+def amount_terms(
+    prev: Mapping[str, int], counts: Mapping[str, int], target_amount: int, success: bool
+) -> dict[str, float]:
+    """The reward's terms of the amount: ``progress``, ``overshoot``, ``spill``, ``success``.
+
+    Changes over the step, in target amounts: poured up to the target, poured beyond it
+    (negative), spilled (negative); ``success`` 1 on the step that ends in success.
+    """
+    t = target_amount
+    return {
+        "progress": (min(counts["poured"], t) - min(prev["poured"], t)) / t,
+        "overshoot": -(max(counts["poured"] - t, 0) - max(prev["poured"] - t, 0)) / t,
+        "spill": -(counts["spilled"] - prev["spilled"]) / t,
+        "success": float(success),
+    }
+
+
+def outcome(info: Mapping) -> str:
+    """Why a pouring episode ended as it did, from its last step's info.
+
+    Returns:
+        One of :data:`POUR_OUTCOMES`, the first that applies in its order.
+    """
+    if info["is_success"]:
+        return "success"
+    if info["spilled"] > 0:
+        return "spilled"
+    error = info["poured"] - info["target_amount"]
+    if error > info["tolerance"]:
+        return "overshot"
+    if not info["poured_any"]:
+        return "never_poured"
+    if error < -info["tolerance"]:
+        return "under_poured"
+    return "unfinished"
+
+
+def tilt_goal(action: float, max_tilt: float) -> float:
+    """The tilt (deg) an angle action in [-1, 1] names: -``UPRIGHT_BAND`` to ``max_tilt``."""
+    return -UPRIGHT_BAND + 0.5 * (action + 1.0) * (max_tilt + UPRIGHT_BAND)
+
+
+def tilt_action(goal: float, max_tilt: float) -> float:
+    """The angle action naming a tilt (deg): :func:`tilt_goal`'s inverse, not clipped."""
+    return 2.0 * (goal + UPRIGHT_BAND) / (max_tilt + UPRIGHT_BAND) - 1.0

@@ -1,0 +1,66 @@
+"""The pouring task's rules: one definition, read by the env, the task and the expert."""
+
+import numpy as np
+import pytest
+
+from pour_gym.envs.rules import (
+    POUR_OUTCOMES,
+    UPRIGHT_BAND,
+    amount_terms,
+    episode_end,
+    outcome,
+    succeeded,
+    tilt_action,
+    tilt_goal,
+    tolerance,
+)
+
+
+def _counts(in_source=0, poured=0, in_flight=0, spilled=0):
+    return {"in_source": in_source, "poured": poured, "in_flight": in_flight, "spilled": spilled}
+
+
+def test_tolerance_and_success():
+    assert [tolerance(t) for t in (30, 100, 188, 300)] == [5, 10, 19, 30]
+    assert succeeded(180, 0, 2.9, 188, 19) and succeeded(207, 0, 0.0, 188, 19)
+    assert not succeeded(168, 0, 0.0, 188, 19)  # 20 short of 188, the tolerance 19
+    assert not succeeded(188, 1, 0.0, 188, 19)  # one particle spilled
+    assert not succeeded(188, 0, 3.0, 188, 19)  # not upright: 3 deg is the bound
+
+
+def test_an_episode_ends_settled_upright_after_a_pour_or_empty_or_on_failure():
+    end = episode_end
+    assert end(_counts(50, 150), 1.0, True, None, 150, 15) == (True, True)
+    assert end(_counts(50, 150, in_flight=3), 1.0, True, None, 150, 15) == (False, False)
+    assert end(_counts(50, 150), 10.0, True, None, 150, 15) == (False, False)  # tilted
+    assert end(_counts(200, 0), 1.0, False, None, 150, 15) == (False, False)  # never poured
+    assert end(_counts(0, 100), 80.0, True, None, 150, 15) == (True, False)  # empty, short
+    assert end(_counts(50, 150), 1.0, True, "hit the target", 150, 15) == (True, False)
+
+
+def test_the_amount_terms_sum_to_the_change_of_the_error():
+    prev, now = _counts(poured=140), _counts(poured=160, spilled=2)
+    terms = amount_terms(prev, now, 150, False)
+    assert terms["progress"] == pytest.approx(10 / 150)
+    assert terms["overshoot"] == pytest.approx(-10 / 150)
+    assert terms["spill"] == pytest.approx(-2 / 150) and terms["success"] == 0.0
+
+
+def test_outcomes_first_match_wins():
+    base = {"is_success": False, "spilled": 0, "poured": 150, "target_amount": 150,
+            "tolerance": 15, "poured_any": True}  # fmt: skip
+    assert outcome({**base, "is_success": True, "spilled": 3}) == "success"
+    assert outcome({**base, "spilled": 3, "poured": 400}) == "spilled"
+    assert outcome({**base, "poured": 166}) == "overshot"
+    assert outcome({**base, "poured": 0, "poured_any": False}) == "never_poured"
+    assert outcome({**base, "poured": 134}) == "under_poured"
+    assert outcome(base) == "unfinished"
+    assert set(POUR_OUTCOMES) == {"success", "spilled", "overshot", "never_poured",
+                                  "under_poured", "unfinished"}  # fmt: skip
+
+
+def test_the_tilt_encoding_and_its_inverse():
+    assert tilt_goal(-1.0, 135.0) == -UPRIGHT_BAND and tilt_goal(1.0, 135.0) == 135.0
+    assert tilt_goal(0.0, 135.0) == pytest.approx(57.5)  # a zero action holds 57.5 deg
+    for a in np.linspace(-1.0, 1.0, 21):
+        assert tilt_action(tilt_goal(a, 135.0), 135.0) == pytest.approx(a, abs=1e-12)
