@@ -86,7 +86,7 @@ ENV_IDS: tuple[str, ...] = tuple(e.id for e in ENVS)
 
 
 def vector_creator_name(env_id: str) -> str:
-    """The name in this module of an id's vector env maker (``vector_pour_v1``, say).
+    """The name of an id's vector env maker in :mod:`pour_gym.envs.vector` (``vector_pour_v1``).
 
     Registered as ``"pour_gym.envs.vector:<name>"``: a string, so that an env's spec
     stays serialisable (Minari writes it into its datasets).

@@ -296,6 +296,8 @@ def label_container(
             a mesh that holds no water.
         ClosedContainerError: the container has no opening (unless ``allow_closed``).
     """
+    import trimesh
+
     if method not in ("best", "thesis"):
         raise InputError(f"unknown method {method!r}; use 'best' or 'thesis'")
     t0 = time.perf_counter()
@@ -314,8 +316,6 @@ def label_container(
     assert frame is not None
     transform = canonical_transform(frame.transform)
     moved = np.asarray(mesh.vertices) @ transform[:3, :3].T + transform[:3, 3]
-    import trimesh
-
     placed = trimesh.Trimesh(canonical_coordinates(moved), mesh.faces, process=False)
     water = container_cavity(placed)
     closed = opening_problem(water, float(placed.convex_hull.volume))

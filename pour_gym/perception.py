@@ -62,6 +62,18 @@ class PerceptionError(InputError):
         self.why = why
 
 
+def _scan_config() -> ScanConfig:
+    from pour_gym.mesh.scan import ScanConfig
+
+    return ScanConfig()
+
+
+def _reconstruct_config() -> ReconstructConfig:
+    from pour_gym.mesh.reconstruct import ReconstructConfig
+
+    return ReconstructConfig()
+
+
 @dataclass(frozen=True)
 class ScanPerception:
     """How a container is perceived: the scan and the reconstruction's settings.
@@ -81,8 +93,8 @@ class ScanPerception:
         source: the labelled cup warped onto the reconstruction.
     """
 
-    scan: ScanConfig = field(default_factory=lambda: _scan_config())
-    reconstruct: ReconstructConfig = field(default_factory=lambda: _reconstruct_config())
+    scan: ScanConfig = field(default_factory=_scan_config)
+    reconstruct: ReconstructConfig = field(default_factory=_reconstruct_config)
     narrower: tuple[float, ...] = (0.006,)
     higher: tuple[float, ...] = (30.0, 60.0)
     source: str = "red_cup"
@@ -90,18 +102,6 @@ class ScanPerception:
     def to_dict(self) -> dict:
         """The settings as a JSON-serialisable dict."""
         return asdict(self)
-
-
-def _scan_config() -> ScanConfig:
-    from pour_gym.mesh.scan import ScanConfig
-
-    return ScanConfig()
-
-
-def _reconstruct_config() -> ReconstructConfig:
-    from pour_gym.mesh.reconstruct import ReconstructConfig
-
-    return ReconstructConfig()
 
 
 def _first_labelled(asset: LabelledAsset, seed: int, how: ScanPerception):
