@@ -320,7 +320,8 @@ def _plot(groups: dict[tuple, list[dict]], path: Path) -> Path:
     ax.set_ylabel("success on the training container\n(as the row's model is scored)")
     ax.set_ylim(-0.02, 1.02)
     ax.set_title("Learning curves: mean over seeds, band: its 95 % bootstrap interval", fontsize=10)
-    ax.legend(fontsize=7, loc="center left")
+    if ax.get_legend_handles_labels()[0]:  # rows without curves (references) draw none
+        ax.legend(fontsize=7, loc="center left")
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
