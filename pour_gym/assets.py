@@ -38,6 +38,8 @@ from pour_gym.features import (
     CAVITY_VERSION,
     CAVITY_VOXEL,
     ContainerGeometry,
+    cavity_arrays,
+    cavity_from_arrays,
     container_cavity,
     container_geometry,
 )
@@ -49,7 +51,7 @@ from pour_gym.mesh.fileio import (
     load_point_cloud,
     validate_mesh,
 )
-from pour_gym.mesh.measure import Cavity, opening_problem
+from pour_gym.mesh.measure import opening_problem
 from pour_gym.mesh.surface import Surface
 from pour_gym.objects import procedural
 from pour_gym.objects.catalogue import OBJECT_NAMES, ObjectSpec
@@ -450,9 +452,7 @@ def _write_loaded(entry: Path, asset: LabelledAsset) -> None:
         rim_center=g.rim_center, rim_radius=g.rim_radius, height=g.height,
         lip_point=g.lip_point, container_volume=g.container_volume,
         cavity_volume=g.cavity_volume, rim_vertices=g.rim_vertices,
-        cavity_bits=np.packbits(g.cavity.mask), cavity_shape=np.array(g.cavity.mask.shape),
-        cavity_origin=g.cavity.origin, cavity_voxel=g.cavity.voxel,
-        cavity_level=g.cavity.level, cavity_overflows=g.cavity.overflows,
+        **cavity_arrays(g.cavity, "cavity_"),
     )  # fmt: skip
     os.replace(part, entry)  # whole or not at all: a reader never sees half a file
 
@@ -460,12 +460,7 @@ def _write_loaded(entry: Path, asset: LabelledAsset) -> None:
 def _read_loaded(entry: Path, name: str, labels: np.ndarray, meta: dict) -> LabelledAsset:
     """An asset from its loaded form (:func:`_write_loaded`), without trimesh or SciPy."""
     with np.load(entry) as d:
-        shape = tuple(int(n) for n in d["cavity_shape"])
-        mask = np.unpackbits(d["cavity_bits"], count=int(np.prod(shape))).reshape(shape)
-        cavity = Cavity(
-            mask.astype(bool), d["cavity_origin"], float(d["cavity_voxel"]),
-            float(d["cavity_level"]), bool(d["cavity_overflows"]),
-        )  # fmt: skip
+        cavity = cavity_from_arrays(d, "cavity_")
         geometry = ContainerGeometry(
             rim_center=d["rim_center"],
             rim_radius=float(d["rim_radius"]),

@@ -108,24 +108,35 @@ def container_cavity(
         key = mesh_key(mesh, voxel, float(closed), CAVITY_VERSION)
         path = cache_dir("cavity") / f"cavity_{key}.npz"
         if path.is_file():
-            data = np.load(path)
-            shape = tuple(int(n) for n in data["shape"])
-            mask = np.unpackbits(data["bits"], count=int(np.prod(shape))).reshape(shape)
-            return Cavity(
-                mask.astype(bool), data["origin"], float(data["voxel"]), float(data["level"]),
-                bool(data["overflows"]),
-            )  # fmt: skip
+            with np.load(path) as data:
+                return cavity_from_arrays(data)
     water = cavity(mesh, voxel, closed=closed)
     if path is not None:
         # Written whole under another name first: a reader never sees half a file.
         part = path.with_suffix(f".{os.getpid()}.npz")
-        np.savez_compressed(
-            part, bits=np.packbits(water.mask), shape=np.array(water.mask.shape),
-            origin=water.origin, voxel=water.voxel, level=water.level,
-            overflows=water.overflows,
-        )  # fmt: skip
+        np.savez_compressed(part, **cavity_arrays(water))
         os.replace(part, path)
     return water
+
+
+def cavity_arrays(water: Cavity, prefix: str = "") -> dict[str, np.ndarray]:
+    """A cavity as arrays for an ``.npz`` (its voxels packed to bits), keys ``prefix + name``."""
+    arrays = {
+        "bits": np.packbits(water.mask), "shape": np.array(water.mask.shape),
+        "origin": water.origin, "voxel": water.voxel, "level": water.level,
+        "overflows": water.overflows,
+    }  # fmt: skip
+    return {prefix + k: np.asarray(v) for k, v in arrays.items()}
+
+
+def cavity_from_arrays(data, prefix: str = "") -> Cavity:
+    """The cavity :func:`cavity_arrays` wrote (``data``: a loaded ``.npz`` or a dict)."""
+    shape = tuple(int(n) for n in data[prefix + "shape"])
+    mask = np.unpackbits(data[prefix + "bits"], count=int(np.prod(shape))).reshape(shape)
+    return Cavity(
+        mask.astype(bool), data[prefix + "origin"], float(data[prefix + "voxel"]),
+        float(data[prefix + "level"]), bool(data[prefix + "overflows"]),
+    )  # fmt: skip
 
 
 def container_geometry(
