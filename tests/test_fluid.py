@@ -293,3 +293,15 @@ def test_scripted_pours_from_the_scanned_mugs_spill_nothing():
         assert info["spilled"] == 0, (source, info["spilled"])
         assert info["is_success"], (source, info["poured"], info["target_amount"])
     env.close()
+
+
+def test_the_kernels_named_arguments_are_its_parameters_in_order():
+    """``KernelArguments`` flattens to the compiled kernel's 54 positional arguments: its
+    groups' fields must be the kernel's parameter names, in the kernel's order."""
+    from pour_gym.fluid import build
+
+    assert build.KernelArguments.names() == build.parameters()
+    fluid = PBFluid(np.zeros((4, 3)) + [0.0, 0.0, 0.01])
+    args = fluid.kernel_arguments(0.01)
+    assert len(args.flat()) == len(build.parameters()) == 54
+    assert args.particles.x is fluid.x

@@ -227,3 +227,34 @@ def test_an_env_on_cached_assets_imports_no_labelling():
     subprocess.run(run, check=True, capture_output=True)  # fills the caches
     done = subprocess.run(run, check=True, capture_output=True, text=True)
     assert done.stdout.strip().splitlines()[-1] == "[]"
+
+
+def test_importing_the_package_compiles_nothing_and_loads_no_threading_library():
+    # A process that imports pour_gym and never steps a fluid (a report, a labelling run,
+    # a user's own numba code) gets no fluid kernel, no patched numba options and no TBB
+    # or OpenMP: the kernel's build loads them when a fluid first needs it.
+    import json
+    import subprocess
+    import sys
+
+    script = (
+        "import json, sys, numba\n"
+        "import pour_gym, pour_gym.fluid\n"
+        "from numba.core.cpu import CPUTargetOptions\n"
+        "from numba.core.registry import CPUDispatcher\n"
+        "maps = open('/proc/self/maps').read()\n"
+        "compiled = sorted(f'{m.__name__}.{n}' for m in list(sys.modules.values())\n"
+        "                  if getattr(m, '__name__', '').startswith('pour_gym')\n"
+        "                  for n, f in vars(m).items()\n"
+        "                  if isinstance(f, CPUDispatcher) and f.signatures)\n"
+        "print(json.dumps({'threading': [l for l in ('libtbb', 'libgomp', 'libiomp', 'libomp')\n"
+        "                                if l in maps],\n"
+        "                  'kernel': 'pour_gym.fluid.kernel' in sys.modules,\n"
+        "                  'noalias_patched': hasattr(CPUTargetOptions, 'noalias'),\n"
+        "                  'compiled': compiled}))\n"
+    )
+    done = subprocess.run(
+        [sys.executable, "-W", "ignore", "-c", script], check=True, capture_output=True, text=True
+    )
+    facts = json.loads(done.stdout.strip().splitlines()[-1])
+    assert facts == {"threading": [], "kernel": False, "noalias_patched": False, "compiled": []}

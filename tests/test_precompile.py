@@ -66,7 +66,7 @@ def test_helpers_started_together_compile_a_build_once(tmp_path):
 # the particles' hash on each and how many drivers this process compiled.
 TILTING_POUR = """
 import hashlib, numpy as np
-from pour_gym.fluid import PBFConfig, PBFluid, build_sdf, pbf
+from pour_gym.fluid import PBFConfig, PBFluid, build, build_sdf
 from pour_gym.objects import cylinder_cup
 R, H, W, B = 0.036, 0.10, 0.004, 0.006
 field = build_sdf(cylinder_cup(R, H, W, B), spacing=0.001)
@@ -86,7 +86,7 @@ for threads in (1, 2):
         cup.rotation = np.array([[np.cos(a), 0, np.sin(a)], [0, 1, 0], [-np.sin(a), 0, np.cos(a)]])
         fluid.step(0.1)
     hashes.append(hashlib.sha256(fluid.x.tobytes()).hexdigest())
-misses = sum(sum(d.stats.cache_misses.values()) for d in pbf._ADVANCE.values())
+misses = sum(sum(d.stats.cache_misses.values()) for d in build.builds().values())
 print(*hashes, misses)
 """
 

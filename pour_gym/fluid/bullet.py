@@ -27,7 +27,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pybullet
 
-from pour_gym.fluid.pbf import GRAVITY, MAX_SPEED, PBFConfig, PosedCollider, substep_poses
+from pour_gym.fluid.colliders import PosedCollider, substep_poses
+from pour_gym.fluid.pbf import GRAVITY, MAX_SPEED, PBFConfig
 from pour_gym.io.stdio import redirect_stdout_fd
 
 if TYPE_CHECKING:

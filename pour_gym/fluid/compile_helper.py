@@ -14,8 +14,9 @@ import time
 
 import numpy as np
 
+from pour_gym.fluid.build import BUILDS
 from pour_gym.fluid.pbf import PBFluid
-from pour_gym.fluid.precompile import BUILDS, cache_dir, lock, locked, marker
+from pour_gym.fluid.precompile import cache_dir, lock, locked, marker
 from pour_gym.fluid.sdf import SignedDistanceField
 
 

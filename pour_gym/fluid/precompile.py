@@ -38,7 +38,6 @@ from pathlib import Path
 
 import numba as nb
 
-BUILDS = ("serial", "parallel")
 ENV_SWITCH = "POUR_GYM_PRECOMPILE"
 # A first step waits this long at most for a helper (a compile takes well under a minute).
 WAIT_SECONDS = 600.0
@@ -108,20 +107,11 @@ def enabled() -> bool:
     )
 
 
-_dispatchers: dict = {}  # build name -> numba dispatcher, set by pour_gym.fluid.pbf
-
-
-def register(dispatchers: dict) -> None:
-    """Tell this module the kernel's builds (``{"serial": ..., "parallel": ...}``).
-
-    :mod:`pour_gym.fluid.pbf` calls it when it has built them, so that this module, which
-    ``pbf`` imports, need not import ``pbf`` back.
-    """
-    _dispatchers.update(dispatchers)
-
-
 def _dispatcher(build: str):
-    return _dispatchers[build]
+    """A build's numba dispatcher (the kernel is imported, not compiled, on the first call)."""
+    from pour_gym.fluid.build import builds  # the kernel's source: only once a fluid exists
+
+    return builds()[build]
 
 
 def cache_dir() -> Path | None:
@@ -138,7 +128,7 @@ def _key() -> str:
 
     here = Path(__file__).parent
     digest = hashlib.sha256()
-    for name in ("pbf.py", "sdf.py"):
+    for name in ("kernel.py", "build.py", "sdf.py"):
         digest.update((here / name).read_bytes())
     features = nb.config.CPU_FEATURES  # numba's target: the host's, or POUR_GYM_CPU's
     for part in (

@@ -31,7 +31,7 @@ import numpy as np
 from scipy.sparse import csr_matrix, diags
 from scipy.sparse.linalg import cg
 
-from pour_gym.io.numba_threads import FORK_WARNING, threads_usable, twin
+from pour_gym.io.numba_threads import FORK_WARNING, threads_usable, twin, use_wheel_tbb
 
 # numba falls back from TBB to its other threading layers by itself; on machines with an
 # old TBB it says so on every first parallel call, which is noise for users.
@@ -151,7 +151,12 @@ _KERNEL_ROWS = _compiled(_kernel_rows_loop)
 
 
 def _threaded() -> bool:
-    """Whether the parallel builds may run here (see :mod:`pour_gym.io.numba_threads`)."""
+    """Whether the parallel builds may run here (see :mod:`pour_gym.io.numba_threads`).
+
+    Loads the wheel's TBB first (once): numba starts its threading layer at the first
+    parallel loop, and the layer it finds then is the one the process keeps.
+    """
+    use_wheel_tbb()
     if threads_usable():
         return True
     warnings.warn(FORK_WARNING.format(what="the Gaussian field"), RuntimeWarning, stacklevel=3)

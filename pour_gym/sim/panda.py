@@ -23,7 +23,7 @@ import numpy as np
 import pybullet_data
 
 from pour_gym.assets import LabelledAsset
-from pour_gym.fluid.pbf import quaternion
+from pour_gym.fluid.colliders import quaternion
 from pour_gym.parts import Part
 
 URDF = "franka_panda/panda.urdf"

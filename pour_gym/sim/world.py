@@ -25,7 +25,8 @@ from pybullet_utils.bullet_client import BulletClient
 from pour_gym.assets import LabelledAsset, load_asset
 from pour_gym.errors import InputError, SimulationError
 from pour_gym.fluid.bullet import BodyCollider, BulletFluid, convex_parts
-from pour_gym.fluid.pbf import Collider, PBFConfig, PBFluid, quaternion, wall_distance
+from pour_gym.fluid.colliders import Collider, quaternion, wall_distance
+from pour_gym.fluid.pbf import PBFConfig, PBFluid
 from pour_gym.fluid.sdf import SignedDistanceField, build_sdf
 from pour_gym.io.cache import cache_dir, mesh_key
 from pour_gym.io.stdio import redirect_stdout_fd
