@@ -47,6 +47,12 @@ REST_POSES = {
     "rim": (0.0, 0.2, 0.0, -2.0, 0.0, 2.2, 0.785),
     "handle": (-1.52, 0.69, 1.17, -2.64, 2.74, 2.0, -2.86),
 }
+# The rest poses for a grasp turned half a turn about the hand's approach
+# (:meth:`Grasp.turned`): the last joint half a turn away.
+TURNED_REST_POSES = {
+    kind: (*pose[:-1], pose[-1] + (np.pi if pose[-1] < 0.0 else -np.pi))
+    for kind, pose in REST_POSES.items()
+}
 # Starting poses for the grasp at reset besides the rest pose: the rest pose with the
 # shoulder, forearm and wrist turned (rad), for grasps the rest pose reaches only with a
 # joint at its limit.
@@ -86,6 +92,15 @@ class Grasp:
     rotation: np.ndarray
     width: float
     kind: str
+
+    def turned(self) -> Grasp:
+        """The same grasp with the hand turned half a turn about its approach.
+
+        Two parallel fingers hold a handle or a rim wall alike either way round; the arm's
+        last joint then stands half a turn away, which frees a wrist held at its limit.
+        """
+        return Grasp(self.position, self.rotation @ np.diag([-1.0, -1.0, 1.0]), self.width,
+                     self.kind)  # fmt: skip
 
 
 def grasp(asset: LabelledAsset) -> Grasp:
