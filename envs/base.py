@@ -18,10 +18,10 @@ from gymnasium import spaces
 from gymnasium.utils import EzPickle
 
 from pour_gym.assets import (
-    CATALOGUE,
     LabelledAsset,
     check_open,
     expand_containers,
+    parse_container,
     resolve_asset,
 )
 from pour_gym.envs.containers import ContainerStore, release
@@ -29,7 +29,6 @@ from pour_gym.envs.observations import VECTOR_MODES, parse_obs_mode
 from pour_gym.fluid import precompile
 from pour_gym.fluid.pbf import PBFConfig, default_threads
 from pour_gym.fluid.sdf import SignedDistanceField
-from pour_gym.objects import procedural
 from pour_gym.perception import PERCEPTIONS, perceived_asset
 from pour_gym.sim import Camera, Container, World
 from pour_gym.sim.sensors import SEGMENTS, Body, Sensor, SensorConfig
@@ -190,7 +189,7 @@ class PourGymEnv(gym.Env, EzPickle):
         """
         names = expand_containers(spec)
         for name in names:
-            if name not in CATALOGUE and not procedural.is_member(name):
+            if parse_container(name).kind not in ("catalogue", "member"):
                 self.asset(name)
         return names
 

@@ -23,15 +23,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from pour_gym.assets import (
-    LABELLING_VERSION,
-    LabelledAsset,
-    cache_entry,
-    cached_asset,
-    label_container,
-)
+from pour_gym.assets import LABELLING_VERSION, LabelledAsset, cached_asset, label_container
 from pour_gym.errors import ClosedContainerError, InputError
 from pour_gym.features import container_geometry
+from pour_gym.io.cache import keyed_entry
 
 if TYPE_CHECKING:
     from pour_gym.mesh.reconstruct import ReconstructConfig
@@ -216,7 +211,7 @@ def perceived_asset(
         ]
     )
     stem = f"{asset.name}_scan{seed}"
-    refused = cache_entry(key, stem, cache_dir).with_suffix(".refused.json")
+    refused = keyed_entry(key, stem, cache_dir).with_suffix(".refused.json")
     if refused.is_file():
         said = json.loads(refused.read_text())
         raise PerceptionError(said["name"], said["why"])

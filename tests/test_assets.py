@@ -155,3 +155,37 @@ def test_a_loaded_asset_from_the_cache_is_the_same_numbers(tmp_path, monkeypatch
     mended = assets.load_asset("red_cup")
     assert mended._mesh is not None and np.array_equal(mended.surface.vertices, a.vertices)
     assert np.load(entries[0])["vertices"].shape == a.vertices.shape
+
+
+def test_one_parser_tags_every_kind_of_container_name(tmp_path):
+    """``parse_container`` tells apart what ``objects=`` takes; every entry point
+    (``expand_containers``, ``resolve_asset``, ``resolve_target``, the envs) goes
+    through it, so a name means one thing everywhere and a bad one gets one message."""
+    from pour_gym.assets import expand_containers, parse_container, resolve_target
+    from pour_gym.errors import InputError
+    from pour_gym.objects import cylinder_cup
+
+    mesh = tmp_path / "cup.obj"
+    cylinder_cup(0.03, 0.08, 0.003, 0.004).export(mesh)
+    cloud = tmp_path / "cup.xyz"
+    cloud.write_text("0 0 0\n0 0 0.01\n")
+    kinds = {
+        "red_cup": "catalogue",
+        "ycb_mug": "catalogue",
+        "procedural:test#7": "member",
+        str(tmp_path): "asset_dir",
+        str(mesh): "mesh_file",
+        str(cloud): "cloud_file",
+    }
+    assert {t: parse_container(t).kind for t in kinds} == kinds
+    for bad, says in (
+        ("teapot", "is not a container"),
+        ("procedural:test#100", "#0-#99"),
+        (str(tmp_path / "missing.stl"), "no file"),
+    ):
+        with pytest.raises(InputError, match=says):
+            parse_container(bad)
+        with pytest.raises(InputError, match=says):
+            expand_containers(["red_cup", bad])
+    with pytest.raises(InputError, match="labelling takes"):
+        resolve_target(str(cloud))

@@ -301,7 +301,7 @@ def test_the_kernels_named_arguments_are_its_parameters_in_order():
     from pour_gym.fluid import build
 
     assert build.KernelArguments.names() == build.parameters()
-    fluid = PBFluid(np.zeros((4, 3)) + [0.0, 0.0, 0.01])
+    fluid = PBFluid(np.full((4, 3), 0.01))
     args = fluid.kernel_arguments(0.01)
     assert len(args.flat()) == len(build.parameters()) == 54
     assert args.particles.x is fluid.x

@@ -206,7 +206,7 @@ def test_a_handle_the_wrist_cannot_take_is_held_the_other_way_round():
 
     env = gym.make(PANDA_POUR_V0, objects="pybullet_mug", num_threads=1)
     holder = env.unwrapped.holder
-    obs, info = env.reset(seed=10000)
+    _, info = env.reset(seed=10000)
     own = grasp(env.unwrapped.source.asset)
     held = holder._held
     # The same fingertip point and approach, the fingers' closing axis reversed.

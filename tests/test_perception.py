@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pour_gym.assets import is_point_cloud_file, resolve_asset
+from pour_gym.assets import resolve_asset
 from pour_gym.errors import InputError
-from pour_gym.mesh.fileio import save_point_cloud
+from pour_gym.mesh.fileio import is_point_cloud_file, save_point_cloud
 from pour_gym.mesh.scan import ScanConfig, turntable_scan
 from pour_gym.perception import (
     PerceptionError,

@@ -250,7 +250,8 @@ def cmd_report(args: argparse.Namespace) -> Output:
         doc = family_warping(args.family)
         return (doc, lambda: family_warping_report(doc))
     if args.what == "warping":
-        from pour_gym.assets import label_container, warping_tables
+        from pour_gym.assets import label_container
+        from pour_gym.report.warping_tables import warping_tables
 
         warp = {}
         for name in tqdm(OBJECT_NAMES, desc="label from red_cup", file=sys.stderr):

@@ -1,7 +1,8 @@
 """The position-based fluid: its parameters, its colliders and the object that steps it.
 
 :class:`PBFluid` holds the particles and the containers they collide with (posed
-signed-distance fields, :mod:`pour_gym.fluid.colliders`), and advances them by calling the compiled kernel
+signed-distance fields, :mod:`pour_gym.fluid.colliders`), and advances them by calling
+the compiled kernel
 (:mod:`pour_gym.fluid.kernel`, the method's description), in one of its two builds
 (:mod:`pour_gym.fluid.build`; compiled ahead by helper processes,
 :mod:`pour_gym.fluid.precompile`). Importing this module compiles nothing: the kernel is

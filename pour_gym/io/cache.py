@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import hashlib
 import os
+import re
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -42,3 +43,16 @@ def mesh_key(mesh: trimesh.Trimesh, *params: float) -> str:
     h.update(np.ascontiguousarray(mesh.faces, dtype=np.int64).tobytes())
     h.update(np.array(params, dtype=np.float64).tobytes())
     return h.hexdigest()[:16]
+
+
+def keyed_entry(key: bytes, stem: str, folder: str | Path | None = None) -> Path:
+    """The path of a cached result with this key (it may not exist yet).
+
+    Args:
+        key: what the result is a function of (file bytes, names, versions, settings).
+        stem: the start of its name, for people reading the cache.
+        folder: where such results are kept (default: the user cache's ``assets``).
+    """
+    root = Path(folder) if folder is not None else cache_dir("assets")
+    stem = re.sub(r"[^A-Za-z0-9]+", "_", stem)
+    return root / f"{stem}_{hashlib.sha256(key).hexdigest()[:16]}"

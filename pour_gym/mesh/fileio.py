@@ -7,6 +7,7 @@ in metres; ``scale`` converts on the way in (0.001 for millimetres).
 
 from __future__ import annotations
 
+import re
 import warnings
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -214,3 +215,17 @@ def save_mesh(mesh: trimesh.Trimesh, path: str | Path) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
     mesh.export(path)
     return path
+
+
+def is_point_cloud_file(path: str | Path) -> bool:
+    """Whether a file holds a point cloud rather than a mesh (a PLY with no faces is one)."""
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix not in CLOUD_SUFFIXES:
+        return False
+    if suffix not in MESH_SUFFIXES:
+        return True
+    with open(path, "rb") as fh:  # a PLY: its header says whether it has faces
+        header = fh.read(4096).split(b"end_header")[0].decode("ascii", "replace")
+    faces = re.search(r"element\s+face\s+(\d+)", header)
+    return faces is None or int(faces.group(1)) == 0
