@@ -15,6 +15,10 @@ baselines report needs none of its dependencies (arch, statsmodels, seaborn):
 - a normalised score: ``(score - random) / (reference - random)`` per task, 0 for a
   seeded random policy and 1 for the reference on the same episodes (Minari's
   ``ref_min_score`` and ``ref_max_score``).
+
+Every interval the project reports comes from here: :func:`bootstrap_interval` (and
+:func:`mean_interval`, the mean over seeds) for statistics over runs, and
+:func:`wilson_interval` for a success rate over episodes.
 """
 
 from __future__ import annotations
@@ -110,3 +114,27 @@ def normalised(scores: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndar
     if np.any(np.abs(span) < 1e-12):
         raise ValueError("the random policy and the reference score the same on a task")
     return (np.asarray(scores, dtype=np.float64) - low) / span
+
+
+def mean_interval(values: list[float]) -> tuple[float, float] | None:
+    """The 95 % bootstrap interval of the mean over seeds (None for one seed)."""
+    if len(values) < 2:
+        return None
+    return bootstrap_interval(mean_score, np.asarray(values, dtype=np.float64)[:, None])
+
+
+def wilson_interval(successes: float, n: int, z: float = 1.96) -> tuple[float, float]:
+    """The Wilson score interval of a success rate (95 % for z = 1.96).
+
+    Args:
+        successes: successful episodes (a mean times n is fine).
+        n: episodes.
+        z: the normal quantile of the interval's confidence.
+    """
+    if n == 0:
+        return (0.0, 1.0)
+    p = successes / n
+    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
+    half = z * np.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
+    # The interval holds p in exact arithmetic; rounding at p = 0 or 1 must not put it out.
+    return (float(max(0.0, min(centre - half, p))), float(min(1.0, max(centre + half, p))))

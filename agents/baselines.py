@@ -29,7 +29,7 @@ import numpy as np
 from pour_gym.agents.aggregate import (
     bootstrap_interval,
     iqm,
-    mean_score,
+    mean_interval,
     normalised,
     probability_of_improvement,
 )
@@ -193,13 +193,6 @@ def reference_summary(eval_path: Path, trained_on: tuple[str, ...] = ("red_cup",
     }
 
 
-def interval(values: list[float]) -> tuple[float, float] | None:
-    """The 95 % bootstrap interval of the mean over seeds (None for one seed)."""
-    if len(values) < 2:
-        return None
-    return bootstrap_interval(mean_score, np.asarray(values, dtype=np.float64)[:, None])
-
-
 def unseen_returns(summaries: list[dict], objects: list[str]) -> np.ndarray:
     """``(runs, tasks)``: each run's mean return on each of ``objects`` (its unseen ones)."""
     table = []
@@ -312,7 +305,7 @@ def _plot(groups: dict[tuple, list[dict]], path: Path) -> Path:
         label = f"{env.split('/')[-1]} {_algorithm(algo, kind)} {mode}, {kind}{how} ({seeds})"
         line = ax.plot(steps, ys.mean(axis=0), "o-", label=label, markersize=3)[0]
         if len(curves) > 1:
-            band = np.array([interval(list(ys[:, k])) for k in range(len(steps))])
+            band = np.array([mean_interval(list(ys[:, k])) for k in range(len(steps))])
             ax.fill_between(steps, band[:, 0], band[:, 1], color=line.get_color(), alpha=0.2)
     # Log steps: a clone's 2000 steps and a learner's 400k on one axis.
     ax.set_xscale("log")
@@ -394,7 +387,7 @@ def baselines_report(
             values = [s["metrics"][name] for s in group]
             present = [v for v in values if v is not None]
             row[name] = {"mean": float(np.mean(present)) if present else None,
-                         "interval": interval(present)}  # fmt: skip
+                         "interval": mean_interval(present)}  # fmt: skip
             cells.append(_cell(row[name], 2 if "success" in name else 1))
         wall = [s["wall_seconds"] / 60 for s in group if s["wall_seconds"] is not None]
         steps = sorted({s["timesteps"] for s in group})

@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from pour_gym.agents.aggregate import wilson_interval
 from pour_gym.agents.evaluate import evaluate_policy, load_policy
 from pour_gym.errors import InputError
 from pour_gym.report.family import BINS, CATEGORIES, PARTS, bucket_tables, by_bucket, mean_of
@@ -27,23 +28,6 @@ from pour_gym.report.tables import markdown_table
 
 VALUES = ("success", "amount_error", "spilled")
 STUDY_SEED = 60_000  # the first evaluation seed (no training run uses 60000+)
-
-
-def wilson_interval(successes: float, n: int, z: float = 1.96) -> tuple[float, float]:
-    """The Wilson score interval of a success rate (95 % for z = 1.96).
-
-    Args:
-        successes: successful episodes (a mean times n is fine).
-        n: episodes.
-        z: the normal quantile of the interval's confidence.
-    """
-    if n == 0:
-        return (0.0, 1.0)
-    p = successes / n
-    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
-    half = z * np.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
-    # The interval holds p in exact arithmetic; rounding at p = 0 or 1 must not put it out.
-    return (float(max(0.0, min(centre - half, p))), float(min(1.0, max(centre + half, p))))
 
 
 def usable_members(family: str) -> tuple[list[str], list[dict]]:

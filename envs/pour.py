@@ -9,59 +9,29 @@ from gymnasium.utils import EzPickle
 from pour_gym.envs.base import PourGymEnv
 from pour_gym.envs.holders import make_holder
 from pour_gym.envs.observations import VECTOR_MODES, parse_obs_mode, vector_mode
-from pour_gym.envs.rules import amount_terms, episode_end, tilt_goal, tolerance
+from pour_gym.envs.pour_observation import (
+    FEATURE_NAMES,
+    OBS_LIMIT,
+    STATE_NAMES,
+    feature_vector,
+    state_vector,
+)
+from pour_gym.envs.rules import (
+    amount_terms,
+    episode_end,
+    shaping_potentials,
+    tilt_goal,
+    tolerance,
+)
 from pour_gym.envs.task import POUR
-from pour_gym.features import ContainerGeometry, fluid_features, relative_distance_height
 from pour_gym.fluid.pbf import PBFConfig
 from pour_gym.sim import Camera, Container
 from pour_gym.sim.rotations import about_z
 from pour_gym.sim.sensors import SensorConfig
 
-FEATURE_NAMES = (
-    "lip_dx",  # (target rim centre - lip) along x, over the target's rim radius
-    "lip_dy",  # the same along y
-    "lip_height",  # lip above the target's rim centre, over the target's height
-    "tilt",  # tilt of the source over 90 degrees
-    "f3_source",  # fluid in the source over the source's volume (thesis f3)
-    "f4_source",  # fluid in the source above its lip over its volume (thesis f4)
-    "poured",  # particles in the target over the target amount
-    "in_flight",  # moving particles in no container over the target amount
-    "spilled",  # resting particles in no container over the target amount
-    "target_fill",  # target amount over the target's volume
-    "stream_f1",  # mean thesis f1 of the particles in flight for the target (0 if none)
-    "target_rim_radius",  # in 10 cm
-    "target_height",  # in 10 cm
-    "source_rim_radius",  # in 10 cm
-    "source_height",  # in 10 cm
-    "in_source",  # particles in the source over the target amount
-)
-STATE_NAMES = (
-    "lip_x",
-    "lip_y",
-    "lip_z",
-    "tilt_rad",
-    "target_x",
-    "target_y",
-    "target_yaw_sin",
-    "target_yaw_cos",
-    "source_size_x",
-    "source_size_y",
-    "source_size_z",
-    "target_size_x",
-    "target_size_y",
-    "target_size_z",
-    "in_source",  # particle counts over the initial fill
-    "poured",
-    "in_flight",
-    "spilled",
-    "target_amount",
-)
-OBS_LIMIT = 10.0
 RESTING_SPEED = 0.05  # m/s: a particle in no container moving slower has spilled
 # The fill left over when the fill is sized to the task, particles.
 FILL_MARGIN = 100
-# Where the aim shaping draws the lip: this many target rim radii before its centre.
-AIM_OFFSET = 0.5
 TILT_CONTROLS = ("rate", "angle")
 
 
@@ -481,9 +451,7 @@ class PourEnv(PourGymEnv):
         terms = {
             **amount_terms(prev, c, self.target_amount, success),
             "time": -1.0,
-            "aim": potentials["aim"] - self._potentials["aim"],
-            "upright": potentials["upright"] - self._potentials["upright"],
-            "tilt": potentials["tilt"] - self._potentials["tilt"],
+            **{k: v - self._potentials[k] for k, v in potentials.items()},  # aim, upright, tilt
             "control": self.holder.control_cost(self, a),
             **self.holder.reward_terms(self),
         }
@@ -549,17 +517,13 @@ class PourEnv(PourGymEnv):
         }
 
     def _potential(self) -> dict[str, float]:
-        """Potentials of the shaping terms (their changes are the terms)."""
+        """Potentials of the shaping terms (:func:`~pour_gym.envs.rules.shaping_potentials`)."""
         gt = self.target.asset.geometry
-        centre = self.target.to_world(gt.rim_center)
-        # The lip pours into the target from over the near half of its opening (the stream
-        # leaves it moving towards +x, the way the source tilts).
-        aim_at = centre[:2] - np.array([AIM_OFFSET * gt.rim_radius, 0.0])
-        aim = -min(float(np.hypot(*(self.lip[:2] - aim_at))) / gt.rim_radius, 10.0)
         c = self._counts
-        done = c["poured"] + c["in_flight"] >= self.target_amount - self.tolerance
-        tilt = self.tilt / 90.0
-        return {"aim": aim, "upright": -tilt if done else 0.0, "tilt": 0.0 if done else tilt}
+        return shaping_potentials(
+            self.lip, self.target.to_world(gt.rim_center), gt.rim_radius, self.tilt,
+            c["poured"] + c["in_flight"] >= self.target_amount - self.tolerance,
+        )  # fmt: skip
 
     def _sensor_frame_pose(self) -> tuple[np.ndarray, np.ndarray]:
         """The source's lip frame: its rotation, with the lip as origin."""
@@ -583,63 +547,21 @@ class PourEnv(PourGymEnv):
         if obs_mode not in VECTOR_MODES:
             raise ValueError(f"observe() gives one of {VECTOR_MODES}, not {obs_mode!r}")
         c = self._counts
-        t = self.target_amount
         # What the policy knows of the containers (perceived, with perception="scan"); the
         # counts and the reward come from the physics, which has the true meshes.
         seen_s, seen_t = self.seen(self._names["source"]), self.seen(self._names["target"])
-        gs: ContainerGeometry = seen_s.geometry
-        gt: ContainerGeometry = seen_t.geometry
-        v = self.world.particle_volume
         if obs_mode == "features":
-            centre = self.target.to_world(gt.rim_center)
-            x = self.world.particles
-            s = self.source
-            f3, f4 = fluid_features(
-                gs, x, s.rotation, s.translation, v, inside=c["where"] == s.index
-            )
-            flight = c["where"] < 0
-            stream = 0.0
-            if np.any(flight):
-                tt = self.target
-                f1, _ = relative_distance_height(gt, x[flight], tt.rotation, tt.translation)
-                stream = float(f1.mean())
-            obs = [
-                (centre[0] - self.lip[0]) / gt.rim_radius,
-                (centre[1] - self.lip[1]) / gt.rim_radius,
-                (self.lip[2] - centre[2]) / gt.height,
-                self.tilt / 90.0,
-                f3,
-                f4,
-                c["poured"] / t,
-                c["in_flight"] / t,
-                c["spilled"] / t,
-                t * v / gt.cavity_volume,
-                stream,
-                gt.rim_radius / 0.1,
-                gt.height / 0.1,
-                gs.rim_radius / 0.1,
-                gs.height / 0.1,
-                c["in_source"] / t,
-            ]
+            obs = feature_vector(
+                self.lip, self.tilt, seen_s.geometry, seen_t.geometry, self.source,
+                self.target, self.world.particles, c, self.target_amount,
+                self.world.particle_volume,
+            )  # fmt: skip
         else:
-            size_s = np.ptp(seen_s.surface.bounds, axis=0)
-            size_t = np.ptp(seen_t.surface.bounds, axis=0)
-            n0 = self.fill
-            obs = [
-                *self.lip,
-                np.radians(self.tilt),
-                self.target_pos[0],
-                self.target_pos[1],
-                np.sin(self.target_yaw),
-                np.cos(self.target_yaw),
-                *(size_s / 0.1),
-                *(size_t / 0.1),
-                c["in_source"] / n0,
-                c["poured"] / n0,
-                c["in_flight"] / n0,
-                c["spilled"] / n0,
-                t / n0,
-            ]
+            obs = state_vector(
+                self.lip, self.tilt, self.target_pos, self.target_yaw,
+                np.ptp(seen_s.surface.bounds, axis=0), np.ptp(seen_t.surface.bounds, axis=0),
+                c, self.fill, self.target_amount,
+            )  # fmt: skip
         obs = np.clip(np.asarray(obs, dtype=np.float32), -OBS_LIMIT, OBS_LIMIT)
         held = self.holder.observation(self)
         if held is None:

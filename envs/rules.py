@@ -1,8 +1,9 @@
 """The pouring task's rules, in one place.
 
-The tolerance, when an episode ends, success, why it ended, the amount's reward terms, and
-how the tilt action is encoded: pure functions of the counts a step takes (particles in
-the source, in the target, in flight and spilled), the tilt and the holder's failure.
+The tolerance, when an episode ends, success, why it ended, the amount's reward terms and
+the shaping potentials, and how the tilt action is encoded: pure functions of the counts a
+step takes (particles in the source, in the target, in flight and spilled), the tilt, the
+lip and the holder's failure.
 :class:`~pour_gym.envs.pour.PourEnv` steps by them, :class:`~pour_gym.envs.task.Task`
 scores episodes by them, and the scripted policy and its demonstrations encode their
 tilts by them.
@@ -12,6 +13,10 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
+import numpy as np
+
+# Where the aim shaping draws the lip: this many target rim radii before its centre.
+AIM_OFFSET = 0.5
 # The source counts as upright below this tilt (deg).
 UPRIGHT_DEG = 3.0
 # tilt_control="angle": the action's tilt range reaches this far below upright (deg), so a
@@ -91,6 +96,29 @@ def amount_terms(
         "spill": -(counts["spilled"] - prev["spilled"]) / t,
         "success": float(success),
     }
+
+
+def shaping_potentials(
+    lip: np.ndarray, rim_centre: np.ndarray, rim_radius: float, tilt: float, done: bool
+) -> dict[str, float]:
+    """Potentials of the shaping terms ``aim``, ``upright`` and ``tilt``.
+
+    Their changes over a step are the terms (potential-based shaping: the optimal policy
+    is unchanged).
+
+    Args:
+        lip: the source's lip, m (world).
+        rim_centre: the target's rim centre, m (world).
+        rim_radius: the target's rim radius, m.
+        tilt: the source's tilt, deg.
+        done: poured plus in flight has reached the amount less the tolerance.
+    """
+    # The lip pours into the target from over the near half of its opening (the stream
+    # leaves it moving towards +x, the way the source tilts).
+    aim_at = rim_centre[:2] - np.array([AIM_OFFSET * rim_radius, 0.0])
+    aim = -min(float(np.hypot(*(lip[:2] - aim_at))) / rim_radius, 10.0)
+    tilt = tilt / 90.0
+    return {"aim": aim, "upright": -tilt if done else 0.0, "tilt": 0.0 if done else tilt}
 
 
 def outcome(info: Mapping) -> str:

@@ -7,7 +7,8 @@ import json
 import numpy as np
 import pytest
 
-from pour_gym.agents.baselines import baselines_report, interval, training_kind
+from pour_gym.agents.aggregate import mean_interval
+from pour_gym.agents.baselines import baselines_report, training_kind
 from pour_gym.errors import InputError
 
 
@@ -88,8 +89,8 @@ def test_the_expert_is_a_reference_row_over_the_runs_unseen_containers(tmp_path)
 
 
 def test_intervals_and_kinds():
-    assert interval([0.5]) is None and interval([0.3, 0.3]) == (0.3, 0.3)
-    low, high = interval([0.0, 1.0, 1.0, 1.0])
+    assert mean_interval([0.5]) is None and mean_interval([0.3, 0.3]) == (0.3, 0.3)
+    low, high = mean_interval([0.0, 1.0, 1.0, 1.0])
     assert 0.0 <= low < np.mean([0.0, 1.0, 1.0, 1.0]) < high <= 1.0
     assert training_kind({"demonstrations": None}) == "reward"
     clone = {"demonstrations": {"episodes": 5}, "hyperparameters": {"gradient_steps": 0}}

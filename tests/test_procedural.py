@@ -207,7 +207,7 @@ def test_warping_over_a_family_reports_iou_per_bucket():
 
 
 def test_wilson_interval_matches_the_textbook():
-    from pour_gym.agents.family_study import wilson_interval
+    from pour_gym.agents.aggregate import wilson_interval
 
     lo, hi = wilson_interval(5, 10)
     assert (lo, hi) == pytest.approx((0.2366, 0.7634), abs=1e-4)

@@ -13,7 +13,7 @@ import json
 import sys
 from collections.abc import Callable
 
-from pour_gym.apps import commands
+from pour_gym.apps import agent_commands, commands
 from pour_gym.envs import POUR_V0, POUR_V1
 from pour_gym.errors import InputError, SimulationError
 from pour_gym.io.stdio import redirect_stdout_fd
@@ -209,7 +209,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0)
 
     p = add(
-        "pour", commands.cmd_pour, "scripted pour from a held container into another (fluid demo)"
+        "pour",
+        agent_commands.cmd_pour,
+        "scripted pour from a held container into another (fluid demo)",
     )
     p.add_argument("--source", default="red_cup", help="held container (catalogue or asset dir)")
     p.add_argument("--target", default="broad_cup", help="container on the table")
@@ -221,7 +223,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = add(
         "experiment",
-        commands.cmd_experiment,
+        agent_commands.cmd_experiment,
         "thesis experiments 1 (drop) and 2 (tilt), ROC curves",
     )
     p.add_argument("which", choices=["drop", "tilt"])
@@ -231,7 +233,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--objects", help="split or comma-separated containers (default: all nine)")
     add_address(p, "collect the episodes as Ray tasks")
 
-    p = add("evaluate", commands.cmd_evaluate, "success, amount error and spill per container")
+    p = add(
+        "evaluate", agent_commands.cmd_evaluate, "success, amount error and spill per container"
+    )
     p.add_argument(
         "policy",
         help="an SB3 model.zip from train.py, the name of a shipped model (e.g. "
@@ -253,7 +257,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
 
     p = add(
-        "search", commands.cmd_search, "CMA-ES policy search over the scripted policy (Pour-v0)"
+        "search",
+        agent_commands.cmd_search,
+        "CMA-ES policy search over the scripted policy (Pour-v0)",
     )
     p.add_argument("--objects", default="train")
     p.add_argument("--generations", type=int, default=6)
@@ -284,12 +290,18 @@ def build_parser() -> argparse.ArgumentParser:
     )
     add_address(p, "evaluate each generation's candidates as Ray tasks")
 
-    p = add("sweep", commands.cmd_sweep, "a grid of train.py runs (Ray Tune trials with --address)")
+    p = add(
+        "sweep",
+        agent_commands.cmd_sweep,
+        "a grid of train.py runs (Ray Tune trials with --address)",
+    )
     p.add_argument("spec", help="YAML: TrainConfig fields and a grid: of fields to vary")
     p.add_argument("--out", required=True, help="folder of the trials' run directories")
     add_address(p, "run the trials on Ray Tune")
 
-    p = add("poc", commands.cmd_poc, "the thesis's proof-of-concept pouring policy (Table 6.1)")
+    p = add(
+        "poc", agent_commands.cmd_poc, "the thesis's proof-of-concept pouring policy (Table 6.1)"
+    )
     p.add_argument("--target", type=int, default=20, help="particles to pour (0.125 ml each)")
     p.add_argument("--samples", type=int, default=60, help="red-cup episodes to learn from")
     p.add_argument("--seed", type=int, default=0)
@@ -304,7 +316,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--episodes", type=int, default=1, help="pours per cup (seeds seed, ...)")
     p.add_argument("--out", help="folder for poc_<policy>_<target>.json")
 
-    p = add("episode", commands.cmd_episode, "an environment at work as a GIF (<env>.gif)")
+    p = add("episode", agent_commands.cmd_episode, "an environment at work as a GIF (<env>.gif)")
     p.add_argument("--env", default=POUR_V0, help="environment id")
     p.add_argument("--source", default="red_cup", help="held container (or the container)")
     p.add_argument("--target", default="broad_cup", help="container on the table")
@@ -314,7 +326,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = add(
         "demonstrations",
-        commands.cmd_demonstrations,
+        agent_commands.cmd_demonstrations,
         "record the scripted expert's episodes as a Minari dataset (offline RL)",
     )
     p.add_argument(
@@ -330,11 +342,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", help="Minari's datasets folder (default: $MINARI_DATASETS_PATH or "
                    "~/.minari/datasets)")  # fmt: skip
 
-    p = add("train", commands.cmd_train, "train an SB3 agent and evaluate it (as train.py)")
+    p = add("train", agent_commands.cmd_train, "train an SB3 agent and evaluate it (as train.py)")
     config_parser(p.description, parser=p)
 
     p = add(
-        "demo", commands.cmd_demo, "rebuild a thesis object from a scan, then pour with it (GIF)"
+        "demo",
+        agent_commands.cmd_demo,
+        "rebuild a thesis object from a scan, then pour with it (GIF)",
     )
     p.add_argument("--out", default="demo_out")
     p.add_argument("--object", default="red_cup")
