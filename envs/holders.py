@@ -2,15 +2,23 @@
 
 The pouring task (:class:`~pour_gym.envs.pour.PourEnv`) composes a holder, as panda-gym
 composes a robot with a task: the task owns the containers, the fluid, the observation,
-the reward and the endings; the holder owns how an action moves the source, what extra
+the reward and the endings; the holder owns how a command moves the source, what extra
 inputs, costs and failures the holding body brings, and its part of ``info``.
 ``PourGym/Pour-v0`` is the task with :class:`FreeHolder`, ``PourGym/PandaPour-v0`` with
 :class:`PandaHolder`; a second arm is a new holder in :data:`HOLDERS`, not a new env.
+
+A holder is a part: it never sees the env. At reset it is given the episode's
+:class:`HeldScene` (the world, the two containers, the source's :class:`SourceFrame`) and
+where the lip and the tilt start; each step it takes a command (the lip and the tilt the
+task commands, and the raw action for holders that read joints from it) and returns the
+pose it reached (:class:`Reached`); its failure, observation, info and reward terms are
+read from it afterwards.
 """
 
 from __future__ import annotations
 
 import inspect
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
@@ -29,8 +37,8 @@ from pour_gym.sim.panda import (
 from pour_gym.sim.rotations import about_z
 
 if TYPE_CHECKING:
-    from pour_gym.envs.pour import PourEnv
     from pour_gym.features import ContainerGeometry
+    from pour_gym.sim import Container, World
 
 PANDA_CONTROLS = ("ee", "joints")
 # The arm takes a grasp at reset when its pose error is below this (m, plus 0.1 m per rad).
@@ -40,8 +48,66 @@ JOINT_NAMES = tuple(f"joint{j + 1}_position" for j in ARM_JOINTS) + tuple(
 )
 
 
+@dataclass(frozen=True)
+class SourceFrame:
+    """How the source is carried: its upright rotation and its lip in its own frame.
+
+    Attributes:
+        base_rotation: (3, 3) the source's rotation when upright.
+        lip_local: (3,) the lip in the source's frame, m.
+    """
+
+    base_rotation: np.ndarray
+    lip_local: np.ndarray
+
+    def rotation(self, tilt_deg: float) -> np.ndarray:
+        """The source's rotation at a tilt (deg) towards +x, its lip facing the target."""
+        # About y by hand: SciPy's Rotation objects cost more than the rest of a step's
+        # bookkeeping together.
+        c, s = np.cos(np.radians(tilt_deg)), np.sin(np.radians(tilt_deg))
+        return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]]) @ self.base_rotation
+
+    def pose(self, lip: np.ndarray, tilt_deg: float) -> tuple[np.ndarray, np.ndarray]:
+        """The source's (position, rotation) with its lip at ``lip`` (m), tilted (deg)."""
+        rot = self.rotation(tilt_deg)
+        return lip - rot @ self.lip_local, rot
+
+    def lip_tilt(self, position: np.ndarray, rotation: np.ndarray) -> Reached:
+        """The lip (m) and the tilt (deg) of the source at a pose."""
+        # The task tilts about y: the container's axis is (sin tilt, 0, cos tilt).
+        tilt = float(np.degrees(np.arctan2(rotation[0, 2], rotation[2, 2])))
+        return Reached(rotation @ self.lip_local + position, tilt)
+
+
+@dataclass(frozen=True)
+class Reached:
+    """Where the holder put the source: its lip (m, world) and its tilt (deg)."""
+
+    lip: np.ndarray
+    tilt: float
+
+
+@dataclass(frozen=True)
+class HeldScene:
+    """What a holder works on in an episode: no env, only its parts.
+
+    Attributes:
+        world: the episode's world (its pybullet client, its containers' poses).
+        source: the held container.
+        target: the container poured into (a body not to touch).
+        frame: how the source is carried.
+        source_name: the source's container name (a grasp is kept per name).
+    """
+
+    world: World
+    source: Container
+    target: Container
+    frame: SourceFrame
+    source_name: str
+
+
 class Holder:
-    """The source's holder: the hooks :class:`~pour_gym.envs.pour.PourEnv` calls.
+    """The source's holder: the part :class:`~pour_gym.envs.pour.PourEnv` composes.
 
     Attributes:
         name: the holder's name in :data:`HOLDERS` (``PourEnv(holder=name)``).
@@ -61,31 +127,41 @@ class Holder:
         """The env's action space: lip velocity (x, y, z) and the tilt action."""
         return spaces.Box(-1.0, 1.0, (4,), np.float32)
 
-    def source_frame(self, gs: ContainerGeometry) -> tuple[np.ndarray, np.ndarray]:
-        """The source's upright rotation and its lip in its frame (m)."""
+    # Whether move() takes the lip and tilt the task commands (else the raw action alone).
+    commands_pose: bool = True
+
+    def source_frame(self, gs: ContainerGeometry) -> SourceFrame:
+        """How the source is carried (its upright rotation, its lip in its frame)."""
         raise NotImplementedError
 
-    def hold(self, env: PourEnv) -> None:
-        """At reset: put the source at ``env.lip`` and ``env.tilt``."""
+    def hold(self, scene: HeldScene, lip: np.ndarray, tilt: float) -> Reached:
+        """At reset: take the episode's scene and put the source at ``lip`` and ``tilt``."""
         raise NotImplementedError
 
-    def move(self, env: PourEnv, a: np.ndarray) -> None:
-        """Send the source where the action says, for the end of this step."""
+    def move(self, a: np.ndarray, commanded: tuple[np.ndarray, float] | None, dt: float) -> Reached:
+        """Send the source towards the command for the end of a step of ``dt`` s.
+
+        Args:
+            a: the action.
+            commanded: the lip (m) and the tilt (deg) the task commands
+                (``commands_pose``), else None.
+            dt: the step, s.
+        """
         raise NotImplementedError
 
-    def failure(self, env: PourEnv) -> str | None:
+    def failure(self) -> str | None:
         """Why the episode failed at this step, if it did."""
         return None
 
-    def reward_terms(self, env: PourEnv) -> dict[str, float]:
+    def reward_terms(self) -> dict[str, float]:
         """The holder's reward terms, unweighted, by the names of its weights."""
         return {}
 
-    def control_cost(self, env: PourEnv, a: np.ndarray) -> float:
+    def control_cost(self, a: np.ndarray) -> float:
         """The ``control`` term: -(mean square of the lip velocity actions)."""
         return -float(np.mean(a[:3] ** 2))
 
-    def observation(self, env: PourEnv) -> np.ndarray | None:
+    def observation(self) -> np.ndarray | None:
         """The holder's inputs, appended to the task's observation (None: none)."""
         return None
 
@@ -93,7 +169,7 @@ class Holder:
         """The holder's entries of the step's info."""
         return {}
 
-    def camera(self, env: PourEnv) -> Camera | None:
+    def camera(self, lip: np.ndarray, target_pos: np.ndarray) -> Camera | None:
         """Where pictures are taken from at this episode (None: the task's camera)."""
         return None
 
@@ -113,19 +189,23 @@ class FreeHolder(Holder):
 
     name = "free"
 
-    def source_frame(self, gs: ContainerGeometry) -> tuple[np.ndarray, np.ndarray]:
+    def source_frame(self, gs: ContainerGeometry) -> SourceFrame:
         """Half a turn about the vertical: the handle away from the target, the lip +x."""
-        rotation = about_z(np.pi)
-        return rotation, np.array([gs.rim_center[0] - gs.rim_radius, gs.rim_center[1], gs.height])
+        lip = np.array([gs.rim_center[0] - gs.rim_radius, gs.rim_center[1], gs.height])
+        return SourceFrame(about_z(np.pi), lip)
 
-    def hold(self, env: PourEnv) -> None:
+    def hold(self, scene: HeldScene, lip: np.ndarray, tilt: float) -> Reached:
         """Put the source at the lip and tilt (held by nothing)."""
-        env.world.teleport(env.source, *env.source_pose(env.lip, env.tilt))
+        self._scene = scene
+        scene.world.teleport(scene.source, *scene.frame.pose(lip, tilt))
+        return Reached(lip, tilt)
 
-    def move(self, env: PourEnv, a: np.ndarray) -> None:
+    def move(self, a: np.ndarray, commanded: tuple[np.ndarray, float] | None, dt: float) -> Reached:
         """The commanded lip and tilt, reached over the step."""
-        env.lip, env.tilt = env.commanded(a)
-        env.world.set_pose(env.source, *env.source_pose(env.lip, env.tilt))
+        lip, tilt = commanded
+        scene = self._scene
+        scene.world.set_pose(scene.source, *scene.frame.pose(lip, tilt))
+        return Reached(lip, tilt)
 
 
 class PandaHolder(Holder):
@@ -222,6 +302,7 @@ class PandaHolder(Holder):
         self._panda: Panda | None = None
         self._grasps: dict[str, Grasp] = {}
         self._held: Grasp | None = None  # the episode's grasp: the container's, or turned
+        self._scene: HeldScene | None = None  # the episode's world and containers
         self._q = np.zeros(len(ARM_JOINTS))  # the joints the arm was last set to, rad
         self._qd = np.zeros(len(ARM_JOINTS))
         self._clipped = np.zeros(len(ARM_JOINTS), dtype=bool)
@@ -243,33 +324,40 @@ class PandaHolder(Holder):
         """``panda`` and its control."""
         return f"panda, control={self.control}"
 
-    def panda(self, env: PourEnv) -> Panda:
-        """The arm (loaded into the env's world's client at the first reset)."""
-        if self._panda is None or self._panda.client is not env.world.client:
-            self._panda = Panda(env.world.client)
+    @property
+    def commands_pose(self) -> bool:
+        """``control="ee"`` moves by the commanded lip and tilt; ``"joints"`` by the action."""
+        return self.control == "ee"
+
+    def panda(self) -> Panda:
+        """The arm (loaded into the world's client at the first reset in that world)."""
+        client = self._scene.world.client
+        if self._panda is None or self._panda.client is not client:
+            self._panda = Panda(client)
         return self._panda
 
-    def _grasp(self, env: PourEnv) -> Grasp:
-        name = env._names["source"]
+    def _grasp(self) -> Grasp:
+        """The source's own grasp (kept per container name)."""
+        name = self._scene.source_name
         if name not in self._grasps:
-            self._grasps[name] = grasp(env.source.asset)
+            self._grasps[name] = grasp(self._scene.source.asset)
         return self._grasps[name]
 
-    def _hand_goal(self, env: PourEnv, lip: np.ndarray, tilt: float, g: Grasp | None = None):
+    def _hand_goal(self, lip: np.ndarray, tilt: float, g: Grasp | None = None):
         """Where the grasp frame goes for the source's lip at ``lip`` (m), tilted (deg).
 
         ``g``: the grasp (default: the episode's).
         """
         g = g or self._held
-        position, rotation = env.source_pose(lip, tilt)
+        position, rotation = self._scene.frame.pose(lip, tilt)
         return rotation @ g.position + position, rotation @ g.rotation
 
-    def source_frame(self, gs: ContainerGeometry) -> tuple[np.ndarray, np.ndarray]:
+    def source_frame(self, gs: ContainerGeometry) -> SourceFrame:
         """A quarter turn about the vertical: the handle faces the arm (-y), the lip +x."""
-        rotation = about_z(-np.pi / 2)
-        return rotation, np.array([gs.rim_center[0], gs.rim_center[1] + gs.rim_radius, gs.height])
+        lip = np.array([gs.rim_center[0], gs.rim_center[1] + gs.rim_radius, gs.height])
+        return SourceFrame(about_z(-np.pi / 2), lip)
 
-    def hold(self, env: PourEnv) -> None:
+    def hold(self, scene: HeldScene, lip: np.ndarray, tilt: float) -> Reached:
         """The arm takes the source at its start: inverse kinematics from the rest pose.
 
         The container's grasp as :func:`~pour_gym.sim.panda.grasp` gives it; where the
@@ -278,14 +366,15 @@ class PandaHolder(Holder):
         10 episodes), the grasp turned half a turn about the hand's approach, if the arm
         takes that one better.
         """
-        panda = self.panda(env)
-        g = self._grasp(env)
+        self._scene = scene
+        panda = self.panda()
+        g = self._grasp()
         choices = []
         for held, rests in ((g, REST_POSES), (g.turned(), TURNED_REST_POSES)):
             rest = np.array(rests[g.kind])
             panda.rest = rest
             panda.set_joints(rest, fingers=0.5 * g.width)
-            goal = self._hand_goal(env, env.lip, env.tilt, held)
+            goal = self._hand_goal(lip, tilt, held)
             q = panda.reach(*goal, [rest] + [rest + np.array(d) for d in SEED_OFFSETS])
             error = panda.pose_error(q, *goal)
             missed = error > REACHED
@@ -297,50 +386,53 @@ class PandaHolder(Holder):
         self._qd = np.zeros(len(ARM_JOINTS))
         self._clipped = np.zeros(len(ARM_JOINTS), dtype=bool)
         self._failed = None
-        commanded = env.lip.copy()
-        self._follow_hand(env, teleport=True)
-        self._lip_error = float(np.linalg.norm(env.lip - commanded))
-        self._tilt_error = abs(env.tilt)
+        reached = self._follow_hand(teleport=True)
+        self._lip_error = float(np.linalg.norm(reached.lip - lip))
+        self._tilt_error = abs(reached.tilt)
+        return reached
 
-    def _follow_hand(self, env: PourEnv, teleport: bool = False) -> None:
-        """Pose the source as the hand holds it; the lip and tilt are then what it reached."""
-        g = self._held
-        hand_position, hand_rotation = self.panda(env).hand_pose()
+    def _follow_hand(self, teleport: bool = False) -> Reached:
+        """Pose the source as the hand holds it; the lip and tilt it then has."""
+        g, scene = self._held, self._scene
+        hand_position, hand_rotation = self.panda().hand_pose()
         rotation = hand_rotation @ g.rotation.T
         position = hand_position - rotation @ g.position
         if teleport:
-            env.world.teleport(env.source, position, rotation)
+            scene.world.teleport(scene.source, position, rotation)
         else:
-            env.world.set_pose(env.source, position, rotation)
-        env.lip = rotation @ env.lip_local + position
-        # Pour-v0 tilts about y: the container's axis is (sin tilt, 0, cos tilt).
-        env.tilt = float(np.degrees(np.arctan2(rotation[0, 2], rotation[2, 2])))
+            scene.world.set_pose(scene.source, position, rotation)
+        return scene.frame.lip_tilt(position, rotation)
 
-    def move(self, env: PourEnv, a: np.ndarray) -> None:
-        """Joint targets for the action, reached within the arm's limits; the source follows."""
-        panda = self.panda(env)
+    def move(self, a: np.ndarray, commanded: tuple[np.ndarray, float] | None, dt: float) -> Reached:
+        """Joint targets for the command, reached within the arm's limits; the source follows.
+
+        ``control="ee"``: towards the commanded lip and tilt by inverse kinematics;
+        ``"joints"``: the action's joint velocities.
+        """
+        panda = self.panda()
         q0 = self._q
         if self.control == "ee":
-            lip, tilt = env.commanded(a)
-            pose = self._hand_goal(env, lip, tilt)
-            q, self._clipped = panda.follow(*pose, env.dt)
+            lip, tilt = commanded
+            pose = self._hand_goal(lip, tilt)
+            q, self._clipped = panda.follow(*pose, dt)
         else:
-            q, self._clipped = panda.limit(q0 + a * panda.max_velocity * env.dt, env.dt)
+            q, self._clipped = panda.limit(q0 + a * panda.max_velocity * dt, dt)
         panda.set_joints(q)
         self._q = q
-        self._qd = (q - q0) / env.dt
-        self._follow_hand(env)
+        self._qd = (q - q0) / dt
+        reached = self._follow_hand()
         if self.control == "ee":
-            self._lip_error = float(np.linalg.norm(env.lip - lip))
-            self._tilt_error = abs(env.tilt - tilt)
+            self._lip_error = float(np.linalg.norm(reached.lip - lip))
+            self._tilt_error = abs(reached.tilt - tilt)
         else:
             self._lip_error = self._tilt_error = 0.0
+        return reached
 
-    def failure(self, env: PourEnv) -> str | None:
+    def failure(self) -> str | None:
         """A touch of the target or the table by the arm or the held container."""
-        client, panda = env.world.client, self.panda(env)
-        table = env.world.table_body
-        source, target = env.source.body, env.target.body
+        scene, panda = self._scene, self.panda()
+        client, table = scene.world.client, scene.world.table_body
+        source, target = scene.source.body, scene.target.body
         self._failed = None
         if client.getClosestPoints(source, target, 0.0):
             self._failed = "the held container touched the target"
@@ -352,22 +444,22 @@ class PandaHolder(Holder):
             self._failed = "the arm hit the table"
         return self._failed
 
-    def reward_terms(self, env: PourEnv) -> dict[str, float]:
+    def reward_terms(self) -> dict[str, float]:
         """``joint_limit`` and ``collision``, unweighted."""
         return {
-            "joint_limit": -float(np.mean(self.panda(env).at_limit(self._q))),
+            "joint_limit": -float(np.mean(self.panda().at_limit(self._q))),
             "collision": -1.0 if self._failed else 0.0,
         }
 
-    def control_cost(self, env: PourEnv, a: np.ndarray) -> float:
+    def control_cost(self, a: np.ndarray) -> float:
         """Pour-v0's, or -(mean square of the joint actions) with ``control="joints"``."""
         if self.control == "joints":
             return -float(np.mean(a**2))
-        return super().control_cost(env, a)
+        return super().control_cost(a)
 
-    def observation(self, env: PourEnv) -> np.ndarray:
+    def observation(self) -> np.ndarray:
         """The joints' positions and velocities, normalised (see ``JOINT_NAMES``)."""
-        return self.panda(env).normalised(self._q, self._qd)
+        return self.panda().normalised(self._q, self._qd)
 
     def info(self) -> dict:
         """``failure``, ``lip_error_m``, ``tilt_error_deg``, ``clipped_joints``."""
@@ -378,9 +470,9 @@ class PandaHolder(Holder):
             "clipped_joints": int(np.count_nonzero(self._clipped)),
         }
 
-    def camera(self, env: PourEnv) -> Camera:
+    def camera(self, lip: np.ndarray, target_pos: np.ndarray) -> Camera:
         """Over the containers, at the arm behind them."""
-        mid = 0.5 * (env.lip + env.target_pos)
+        mid = 0.5 * (lip + target_pos)
         return Camera(target=(float(mid[0]), -0.12, 0.2), distance=0.8, yaw=150.0, pitch=-22.0)
 
 

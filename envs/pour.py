@@ -7,7 +7,7 @@ from gymnasium import spaces
 from gymnasium.utils import EzPickle
 
 from pour_gym.envs.base import PourGymEnv
-from pour_gym.envs.holders import make_holder
+from pour_gym.envs.holders import HeldScene, make_holder
 from pour_gym.envs.observations import VECTOR_MODES, parse_obs_mode, vector_mode
 from pour_gym.envs.pour_observation import (
     FEATURE_NAMES,
@@ -377,7 +377,7 @@ class PourEnv(PourGymEnv):
         self.target_pos = np.array([rng.uniform(0.15, 0.25), rng.uniform(-0.1, 0.1), 0.0])
         rot_t = about_z(self.target_yaw)
         self.world.teleport(self.target, self.target_pos, rot_t)
-        self.source_base_rotation, self.lip_local = self.holder.source_frame(gs)
+        self.frame = self.holder.source_frame(gs)
         self.z_min = gt.height + gs.height + 0.01
         self.lip = np.array([0.0, 0.0, self.z_min + rng.uniform(0.0, 0.05)])
         if options.get("near_target"):
@@ -386,8 +386,9 @@ class PourEnv(PourGymEnv):
             centre = self.target_pos + rot_t @ gt.rim_center
             offset = np.array([-0.5, 0.0]) + rng.uniform(-0.4, 0.4, 2)
             self.lip[:2] = centre[:2] + offset * gt.rim_radius
-        self.tilt = 0.0
-        self.holder.hold(self)
+        scene = HeldScene(self.world, self.source, self.target, self.frame, source)
+        reached = self.holder.hold(scene, self.lip, 0.0)
+        self.lip, self.tilt = reached.lip, reached.tilt
         v = self.world.particle_volume
         capacity_s = int(0.6 * gs.cavity_volume / v)
         capacity_t = int(0.6 * gt.cavity_volume / v)
@@ -429,13 +430,15 @@ class PourEnv(PourGymEnv):
         self._substeps = 0
         self._counts = self._count()
         self._potentials = self._potential()
-        self.camera = self.holder.camera(self) or self.camera
+        self.camera = self.holder.camera(self.lip, self.target_pos) or self.camera
         return self._observation(), self._info()
 
     def step(self, action):
         """Move and tilt the source for ``dt`` = 0.1 s of simulated time."""
         a = self._check_action(action)
-        self.holder.move(self, a)
+        commanded = self.commanded(a) if self.holder.commands_pose else None
+        reached = self.holder.move(a, commanded, self.dt)
+        self.lip, self.tilt = reached.lip, reached.tilt
         self._substeps = self.world.step(self.dt)
         self._corrections = self.world.corrections
         prev, c = self._counts, self._count()
@@ -443,7 +446,7 @@ class PourEnv(PourGymEnv):
         out = self.fill - c["in_source"]
         self._out_run = self._out_run + 1 if out >= self.pour_threshold else 0
         self._poured_any = self._poured_any or self._out_run >= self.pour_steps
-        failure = self.holder.failure(self)
+        failure = self.holder.failure()
         terminated, success = episode_end(
             c, self.tilt, self._poured_any, failure, self.target_amount, self.tolerance
         )
@@ -452,8 +455,8 @@ class PourEnv(PourGymEnv):
             **amount_terms(prev, c, self.target_amount, success),
             "time": -1.0,
             **{k: v - self._potentials[k] for k, v in potentials.items()},  # aim, upright, tilt
-            "control": self.holder.control_cost(self, a),
-            **self.holder.reward_terms(self),
+            "control": self.holder.control_cost(a),
+            **self.holder.reward_terms(),
         }
         self._potentials = potentials
         reward, weighted = self._reward(terms)
@@ -492,15 +495,11 @@ class PourEnv(PourGymEnv):
     # ------------------------------------------------------------------ helpers
     def source_pose(self, lip: np.ndarray, tilt_deg: float) -> tuple[np.ndarray, np.ndarray]:
         """The source's (position, rotation) with its lip at ``lip`` (m), tilted (deg)."""
-        rot = self.source_rotation(tilt_deg)
-        return lip - rot @ self.lip_local, rot
+        return self.frame.pose(lip, tilt_deg)
 
     def source_rotation(self, tilt_deg: float) -> np.ndarray:
         """The source's rotation at a tilt (deg) towards +x, its lip facing the target."""
-        # About y by hand: SciPy's Rotation objects cost more than the rest of this step's
-        # bookkeeping together.
-        c, s = np.cos(np.radians(tilt_deg)), np.sin(np.radians(tilt_deg))
-        return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]]) @ self.source_base_rotation
+        return self.frame.rotation(tilt_deg)
 
     def _count(self) -> dict:
         """Particles in the source, in the target, in flight and spilled (and where)."""
@@ -563,7 +562,7 @@ class PourEnv(PourGymEnv):
                 c, self.fill, self.target_amount,
             )  # fmt: skip
         obs = np.clip(np.asarray(obs, dtype=np.float32), -OBS_LIMIT, OBS_LIMIT)
-        held = self.holder.observation(self)
+        held = self.holder.observation()
         if held is None:
             return obs
         held = np.clip(held, -OBS_LIMIT, OBS_LIMIT).astype(np.float32)

@@ -53,7 +53,7 @@ def test_the_cup_stays_in_the_hand_at_full_speed_and_tilt_rate(source):
     for k in range(50):
         sign = 1.0 if (k // 10) % 2 == 0 else -1.0
         _, _, terminated, _, _ = env.step(np.array([sign, -sign, sign, sign], np.float32))
-        hand_position, hand_rotation = u.holder.panda(u).hand_pose()
+        hand_position, hand_rotation = u.holder.panda().hand_pose()
         held_rotation = u.source.rotation @ g.rotation
         held_position = u.source.to_world(g.position)
         assert np.linalg.norm(held_position - hand_position) < 0.002
@@ -115,7 +115,7 @@ def test_the_observation_ends_with_the_joints_normalised():
     u = env.unwrapped
     obs, _ = env.reset(seed=0)
     assert len(u.obs_names) == len(obs) == 16 + 14 and u.obs_names[16:] == JOINT_NAMES
-    arm = u.holder.panda(u)
+    arm = u.holder.panda()
     q = arm.joints
     mid, half = 0.5 * (arm.upper + arm.lower), 0.5 * (arm.upper - arm.lower)
     assert np.allclose(obs[16:23], (q - mid) / half, atol=1e-6)
