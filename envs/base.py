@@ -363,6 +363,7 @@ class PourGymEnv(gym.Env, EzPickle):
             )
             for role, c in self._placed.items()
         ]
+        bodies += self._more_drawables()
         radius = self.sensor_config.splat * world.config.spacing
         table = TABLE_COLOR[:3] if world.table else None
         return self.sensor.capture(
@@ -373,6 +374,10 @@ class PourGymEnv(gym.Env, EzPickle):
         """The mesh of a role's container as the sensor draws it (made once)."""
         name = self._names[role]
         return self._store.get(name, "drawn", lambda: self.sensor.mesh(self.asset(name).mesh))
+
+    def _more_drawables(self) -> list[Body]:
+        """What the sensors draw besides the containers (the pouring env: its holder)."""
+        return []
 
     def _show_scene(self) -> None:
         """Make the world show the episode before a picture.

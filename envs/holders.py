@@ -18,6 +18,7 @@ read from it afterwards.
 from __future__ import annotations
 
 import inspect
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, ClassVar
 
@@ -35,12 +36,15 @@ from pour_gym.sim.panda import (
     grasp,
 )
 from pour_gym.sim.rotations import about_z
+from pour_gym.sim.sensors import SEGMENTS, Body
 
 if TYPE_CHECKING:
     from pour_gym.features import ContainerGeometry
     from pour_gym.sim import Container, World
 
 PANDA_CONTROLS = ("ee", "joints")
+# The arm's colour in the sensors' rgb pictures (pybullet draws it white and grey).
+ARM_COLOR = (0.80, 0.80, 0.82)
 # The arm takes a grasp at reset when its pose error is below this (m, plus 0.1 m per rad).
 REACHED = 2e-3
 JOINT_NAMES = tuple(f"joint{j + 1}_position" for j in ARM_JOINTS) + tuple(
@@ -173,6 +177,15 @@ class Holder:
         """Where pictures are taken from at this episode (None: the task's camera)."""
         return None
 
+    def drawables(self, drawn_mesh: Callable) -> list[Body]:
+        """The holder's body as the sensors draw it, at its current pose (none: nothing).
+
+        Args:
+            drawn_mesh: the sensor's mesh simplification (a trimesh mesh to its
+                ``(vertices, faces)``, :meth:`pour_gym.sim.sensors.Sensor.mesh`).
+        """
+        return []
+
     def describe(self) -> str:
         """A short description for the env's ``repr``."""
         return self.name
@@ -285,7 +298,8 @@ class PandaHolder(Holder):
       subclass of it); nothing an episode does changed. The faster fluid kernel (see
       Pour-v0). The grasp turned round where the arm cannot take the container's own at
       the start: the pybullet mug's episodes changed (the scripted policy 1 -> 7 pours in
-      10), and those of any container whose start the arm missed by over 2 mm.
+      10), and those of any container whose start the arm missed by over 2 mm. The
+      sensors draw the arm: every ``obs_mode`` (``depth``, ``rgb``, ``points``) is taken.
     """
 
     name = "panda"
@@ -303,6 +317,7 @@ class PandaHolder(Holder):
         self._grasps: dict[str, Grasp] = {}
         self._held: Grasp | None = None  # the episode's grasp: the container's, or turned
         self._scene: HeldScene | None = None  # the episode's world and containers
+        self._drawn: tuple | None = None  # (the arm, its links as the sensor draws them)
         self._q = np.zeros(len(ARM_JOINTS))  # the joints the arm was last set to, rad
         self._qd = np.zeros(len(ARM_JOINTS))
         self._clipped = np.zeros(len(ARM_JOINTS), dtype=bool)
@@ -469,6 +484,24 @@ class PandaHolder(Holder):
             "tilt_error_deg": self._tilt_error,
             "clipped_joints": int(np.count_nonzero(self._clipped)),
         }
+
+    def drawables(self, drawn_mesh: Callable) -> list[Body]:
+        """The arm's links (and fingers) at their current poses, as the sensors draw them."""
+        panda = self.panda()
+        if self._drawn is None or self._drawn[0] is not panda:
+            shapes = [
+                (link, *drawn_mesh(mesh), local) for link, mesh, local in panda.visual_meshes()
+            ]
+            self._drawn = (panda, shapes)
+        shapes = self._drawn[1]
+        frames = panda.link_frames({link for link, *_ in shapes})
+        bodies = []
+        for link, vertices, faces, local in shapes:
+            pose = frames[link] @ local
+            bodies.append(
+                Body(vertices, faces, pose[:3, :3], pose[:3, 3], SEGMENTS["arm"], ARM_COLOR)
+            )
+        return bodies
 
     def camera(self, lip: np.ndarray, target_pos: np.ndarray) -> Camera:
         """Over the containers, at the arm behind them."""

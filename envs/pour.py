@@ -75,8 +75,8 @@ class PourEnv(PourGymEnv):
     (``"depth"``, ``"rgb"``, ``"points"``; :mod:`pour_gym.sim.sensors`) are what a head
     camera facing the two containers across the table sees (84 x 84 by default,
     ``sensor_config``), the fluid drawn as one body of water; a tuple of modes, e.g.
-    ``("features", "depth")``, gives a ``Dict`` keyed by mode. The arm of
-    ``holder="panda"`` is not drawn, so sensor modes are refused with it.
+    ``("features", "depth")``, gives a ``Dict`` keyed by mode. With ``holder="panda"``
+    the sensors draw the arm too (its links as ``pybullet_data`` shapes them).
 
     What the observation knows of the containers' shapes (rims, heights, volumes, lip
     points, bounding boxes) comes from their labelled assets, or with
@@ -299,11 +299,6 @@ class PourEnv(PourGymEnv):
             sensor_config=sensor_config,
         )
         modes = parse_obs_mode(obs_mode)
-        if holder != "free" and set(modes) - set(VECTOR_MODES):
-            raise ValueError(
-                f"obs_mode {obs_mode!r} with holder={holder!r}: the sensors do not draw the "
-                "arm yet, so their pictures would be wrong; use 'features' or 'state'"
-            )
         if source_particles is not None and source_particles < 100:
             raise ValueError(f"source_particles must be at least 100, not {source_particles}")
         lo, hi = amount_range
@@ -523,6 +518,10 @@ class PourEnv(PourGymEnv):
             self.lip, self.target.to_world(gt.rim_center), gt.rim_radius, self.tilt,
             c["poured"] + c["in_flight"] >= self.target_amount - self.tolerance,
         )  # fmt: skip
+
+    def _more_drawables(self) -> list:
+        """The holder's body (the arm's links), drawn by the sensors with the containers."""
+        return self.holder.drawables(self.sensor.mesh)
 
     def _sensor_frame_pose(self) -> tuple[np.ndarray, np.ndarray]:
         """The source's lip frame: its rotation, with the lip as origin."""

@@ -43,7 +43,11 @@ ONE_STEP = ("PourGym/TiltPour-v0", "PourGym/ParticleDrop-v0")
 
 @pytest.mark.parametrize(
     "env_id, obs_mode",
-    [(e, m) for e in (*ONE_STEP, "PourGym/Pour-v1") for m in ("depth", "rgb", "points")]
+    [
+        (e, m)
+        for e in (*ONE_STEP, "PourGym/Pour-v1", "PourGym/PandaPour-v0")
+        for m in ("depth", "rgb", "points")
+    ]
     + [
         ("PourGym/ParticleDrop-v0", ("features", "depth")),
         ("PourGym/TiltPour-v0", ("state", "rgb")),
@@ -151,8 +155,6 @@ def test_bad_modes_and_configs_are_refused_by_name():
         make("PourGym/TiltPour-v0", "depth", sensor_config={"size": 64})
     with pytest.raises(ValueError, match="points_frame"):
         SensorConfig(points_frame="lip")
-    with pytest.raises(ValueError, match="do not draw the arm"):
-        gym.make("PourGym/PandaPour-v0", objects="red_cup", obs_mode="depth")
 
 
 def test_points_in_the_source_frame_are_the_world_points_moved():
@@ -196,3 +198,35 @@ def test_report_sensors_draws_a_sheet_with_fluid_in_view(tmp_path):
         "pour-v0.png",
         "tiltpour-v0.png",
     ]
+
+
+def test_the_head_camera_sees_the_arm_where_pybullet_draws_it():
+    """PandaPour's sensors draw the arm's links (pybullet_data's visual meshes at the
+    links' poses): the arm's pixels in the sensor's segments match those of pybullet's
+    own renderer at the same camera (intersection over union above 0.9)."""
+    import pybullet
+
+    from pour_gym.sim.sensors import SEGMENTS
+
+    env = gym.make(
+        "PourGym/PandaPour-v0", objects="red_cup", obs_mode="depth", num_threads=1,
+        sensor_config={"width": 160, "height": 120},
+    )  # fmt: skip
+    env.reset(seed=3)
+    for _ in range(3):
+        env.step(env.action_space.sample())
+    u = env.unwrapped
+    arm = u.capture().segment == SEGMENTS["arm"]
+    cam = u.sensor.camera
+    projection = pybullet.computeProjectionMatrixFOV(
+        cam.fov, cam.width / cam.height, cam.near, cam.far
+    )
+    image = u.world.client.getCameraImage(
+        cam.width, cam.height, viewMatrix=cam.view().T.flatten().tolist(),
+        projectionMatrix=projection, renderer=pybullet.ER_TINY_RENDERER,
+    )  # fmt: skip
+    body = np.array(image[4]).reshape(cam.height, cam.width) & ((1 << 24) - 1)
+    drawn = body == u.holder.panda().body
+    env.close()
+    assert arm.sum() > 0.05 * arm.size  # the arm is in view
+    assert (arm & drawn).sum() / (arm | drawn).sum() > 0.9

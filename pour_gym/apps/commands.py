@@ -229,11 +229,13 @@ def cmd_report(args: argparse.Namespace) -> Output:
         return (doc, lambda: (out / "report.md").read_text())
     if args.what == "sensors":
         from pour_gym.apps.sensor_pictures import sensor_sheets
-        from pour_gym.envs import PARTICLE_DROP_V0, POUR_V0, TILT_POUR_V0
+        from pour_gym.envs import PANDA_POUR_V0, PARTICLE_DROP_V0, POUR_V0, TILT_POUR_V0
 
         if not args.out:
             raise InputError("report sensors needs --out DIR (for a PNG per environment)")
-        paths = sensor_sheets([POUR_V0, TILT_POUR_V0, PARTICLE_DROP_V0], args.out, args.seed)
+        paths = sensor_sheets(
+            [POUR_V0, PANDA_POUR_V0, TILT_POUR_V0, PARTICLE_DROP_V0], args.out, args.seed
+        )
         doc = {"pictures": [str(p) for p in paths]}
         return (doc, lambda: "\n".join(doc["pictures"]))
     if args.what == "baselines":

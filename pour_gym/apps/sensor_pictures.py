@@ -2,8 +2,8 @@
 
 One sheet per environment: the colour image, the depth image and the point cloud (by
 segment) an agent receives at the env's defaults, at a moment where there is fluid to
-see: Pour-v0 in the middle of the scripted policy's pour, TiltPour-v0 tilted with its
-fill, ParticleDrop-v0 with its blob over the container.
+see: Pour-v0 and PandaPour-v0 (the arm drawn) in the middle of the scripted policy's pour,
+TiltPour-v0 tilted with its fill, ParticleDrop-v0 with its blob over the container.
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ from pour_gym.report.pictures import save_figure
 from pour_gym.sim.sensors import SEGMENTS
 
 MODES = ("rgb", "depth", "points")
-SEGMENT_COLORS = {1: "#d43333", 2: "#9a9a90", 3: "#3373e6", 4: "#a89070"}
+SEGMENT_COLORS = {1: "#d43333", 2: "#9a9a90", 3: "#3373e6", 4: "#a89070", 5: "#55555f"}
 
 
 def observe_scene(env_id: str, seed: int = 0) -> tuple[dict, str]:

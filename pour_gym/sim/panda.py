@@ -158,6 +158,10 @@ class Panda:
         client.setAdditionalSearchPath(pybullet_data.getDataPath())
         turn = [0.0, 0.0, float(np.sin(yaw / 2)), float(np.cos(yaw / 2))]
         self.body = client.loadURDF(URDF, list(base), turn, useFixedBase=True)
+        # The base's URDF frame (pybullet reports the base's centre of mass instead).
+        self._base_frame = np.eye(4)
+        self._base_frame[:3, :3] = np.array(client.getMatrixFromQuaternion(turn)).reshape(3, 3)
+        self._base_frame[:3, 3] = base
         # Bound once: a BulletClient wraps the function anew at every attribute lookup.
         self._reset_joints = client.resetJointStatesMultiDof
         info = [client.getJointInfo(self.body, j) for j in ARM_JOINTS]
@@ -178,6 +182,41 @@ class Panda:
         self._reset_joints(self.body, ARM_JOINTS, [[float(v)] for v in q])
         if fingers is not None:
             self._reset_joints(self.body, FINGER_JOINTS, [[float(fingers)]] * len(FINGER_JOINTS))
+
+    def visual_meshes(self) -> list[tuple[int, object, np.ndarray]]:
+        """The arm's drawn meshes: ``(link, trimesh mesh, (4, 4) frame in the link's)``.
+
+        Link -1 is the base. Read from the URDF's visual shapes (``pybullet_data``'s OBJ
+        files), in the order pybullet lists them.
+        """
+        import trimesh
+
+        shapes = []
+        for shape in self.client.getVisualShapeData(self.body):
+            link, scale, filename, position, orientation = (
+                shape[1], shape[3], shape[4].decode(), shape[5], shape[6]
+            )  # fmt: skip
+            mesh = trimesh.load(filename, force="mesh", process=False)
+            mesh.apply_scale(np.asarray(scale, dtype=np.float64))
+            local = np.eye(4)
+            local[:3, :3] = np.array(self.client.getMatrixFromQuaternion(orientation)).reshape(3, 3)
+            local[:3, 3] = position
+            shapes.append((int(link), mesh, local))
+        return shapes
+
+    def link_frames(self, links) -> dict[int, np.ndarray]:
+        """The links' URDF frames in the world as (4, 4) matrices (link -1: the base)."""
+        frames = {}
+        for link in links:
+            if link < 0:
+                frames[link] = self._base_frame
+                continue
+            state = self.client.getLinkState(self.body, link, computeForwardKinematics=True)
+            frame = np.eye(4)
+            frame[:3, :3] = np.array(self.client.getMatrixFromQuaternion(state[5])).reshape(3, 3)
+            frame[:3, 3] = state[4]
+            frames[link] = frame
+        return frames
 
     def hand_pose(self) -> tuple[np.ndarray, np.ndarray]:
         """The grasp frame's (position (3,), rotation (3, 3)) in the world."""

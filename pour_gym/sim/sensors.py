@@ -14,7 +14,8 @@ a segment id per pixel and, when asked, colour. The observations are made from a
   Flat, because SB3 takes a vector as it is (its ``check_env`` warns on an (N, 4) box).
 
 Sensor noise (``depth_noise``, m) is added to the depth before both the depth image and the
-points are made, so they agree. The arm of ``holder="panda"`` is not drawn.
+points are made, so they agree. What the env draws besides its containers (the arm of
+``holder="panda"``, its links as ``pybullet_data`` shapes them) comes as more bodies.
 """
 
 from __future__ import annotations
@@ -34,7 +35,7 @@ from pour_gym.sim.raster import (
 )
 
 # A point's segment id: what it lies on.
-SEGMENTS = {"source": 1, "target": 2, "fluid": 3, "table": 4}
+SEGMENTS = {"source": 1, "target": 2, "fluid": 3, "table": 4, "arm": 5}
 POINT_FRAMES = ("world", "source")
 POINT_LIMIT = 2.0  # m: a point's coordinates are clipped to +-2 m (the sensor sees 1.5 m)
 TABLE_HALF = 0.5  # m, the table's half side (pour_gym.sim.world's table)
