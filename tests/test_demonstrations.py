@@ -170,7 +170,7 @@ def test_noisy_demonstrations_execute_noise_and_keep_the_expert_labels():
 def test_inputs_the_demonstrations_never_vary_are_hidden_from_the_network():
     from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
-    from pour_gym.agents.training.bootstrap import ignore_constant_inputs
+    from pour_gym.agents.training.warm_start import ignore_constant_inputs
 
     venv = VecNormalize(DummyVecEnv([lambda: gym.make("Pendulum-v1")]), epsilon=0.1)
     rng = np.random.default_rng(0)

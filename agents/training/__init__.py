@@ -7,7 +7,7 @@
 - :mod:`~pour_gym.agents.training.runs`: run directories, trained models with their
   normaliser (:func:`load_run`), checkpoints, the models that ship with pour-gym.
 - :mod:`~pour_gym.agents.training.curves`: learning curves and the run's callbacks.
-- :mod:`~pour_gym.agents.training.bootstrap`: starting from the expert's demonstrations.
+- :mod:`~pour_gym.agents.training.warm_start`: a warm start from the expert's demonstrations.
 - :mod:`~pour_gym.agents.training.loop`: :func:`train`.
 
 Running the same command again resumes from the newest checkpoint until the requested

@@ -9,7 +9,6 @@ import time
 
 from pour_gym.agents.evaluate import evaluate_policy, evaluation_table
 from pour_gym.agents.rollout import sb3_policy
-from pour_gym.agents.training.bootstrap import start_from_demonstrations
 from pour_gym.agents.training.config import TrainConfig, algorithm
 from pour_gym.agents.training.curves import (
     keep_best_of_curve,
@@ -26,6 +25,7 @@ from pour_gym.agents.training.runs import (
     save_normaliser,
 )
 from pour_gym.agents.training.vector import training_vec_env
+from pour_gym.agents.training.warm_start import start_from_demonstrations
 from pour_gym.assets import expand_containers
 from pour_gym.envs import ENV_IDS, entry, task_of
 from pour_gym.errors import InputError
