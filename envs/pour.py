@@ -157,7 +157,7 @@ class PourEnv(PourGymEnv):
     half of the target's opening, 0.1-0.9 rim radii before its centre towards the source
     and within 0.4 to the sides, instead of at the origin; a start for curricula) and
     ``fill_margin`` (particles: this episode's fill is T plus this margin instead of T +
-    100; for curricula, see :class:`pour_gym.agents.curriculum.TrainingStarts`).
+    100; for curricula, see :class:`pour_gym.agents.training.curriculum.TrainingStarts`).
 
     ## Version History
     Both versions are kept: v0 is the thesis's task, the setting of the shipped clone and

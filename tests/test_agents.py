@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pour_gym.agents.evaluate import evaluate_policy
-from pour_gym.agents.search import PARAMETERS, search
+from pour_gym.agents.evaluation.evaluate import evaluate_policy
+from pour_gym.agents.policies.search import PARAMETERS, search
 from pour_gym.agents.training import load_hyperparameters
 from pour_gym.errors import InputError
 
@@ -36,7 +36,7 @@ def test_training_starts_draw_where_an_episode_starts_and_how_full():
     the range; options the caller gives win; the env refuses a margin with a fixed fill."""
     import gymnasium as gym
 
-    from pour_gym.agents.curriculum import TrainingStarts
+    from pour_gym.agents.training.curriculum import TrainingStarts
 
     env = TrainingStarts(
         gym.make("PourGym/Pour-v0", objects="red_cup", num_threads=1),
@@ -68,7 +68,7 @@ def test_training_starts_follow_the_env_seed_from_the_first_reset():
     seeded (an env seeded before it was wrapped): two such runs start alike."""
     import gymnasium as gym
 
-    from pour_gym.agents.curriculum import TrainingStarts
+    from pour_gym.agents.training.curriculum import TrainingStarts
 
     def starts():
         inner = gym.make("PourGym/Pour-v0", objects="red_cup", num_threads=1)
@@ -102,8 +102,8 @@ def test_train_py_trains_checkpoints_resumes_and_evaluates(tmp_path):
     assert [r["object"] for r in doc["rows"]] == ["red_cup", "standard_cup"]
     assert doc["rows"][0]["trained_on"] and not doc["rows"][1]["trained_on"]
     # The rows are the saved model's: evaluated again here, at the run's seeds.
-    from pour_gym.agents.evaluate import evaluate_policy
-    from pour_gym.agents.rollout import sb3_policy
+    from pour_gym.agents.evaluation.evaluate import evaluate_policy
+    from pour_gym.agents.policies.rollout import sb3_policy
     from pour_gym.agents.training import load_run
 
     run = load_run(out / "model.zip")
@@ -198,7 +198,8 @@ def test_pour_v1_recipes_learn_from_the_reward_a_few_hundred_steps(algo, tmp_pat
         "--timesteps", "256", "--eval-objects", "red_cup,broad_cup", "--eval-episodes", "1",
         "--curve-every", "256", "--curve-episodes", "1",
         "--env-kwargs", '{"source_particles": 300, "amount_range": [40, 80]}',
-        "--set", "env_wrapper=[{pour_gym.agents.curriculum.TrainingStarts: {near_target: 0.5}}]",
+        "--set",
+        "env_wrapper=[{pour_gym.agents.training.curriculum.TrainingStarts: {near_target: 0.5}}]",
     )  # fmt: skip
     if algo == "ppo":
         # Three updates; a checkpoint and a curve point after each rollout of 128 steps.
@@ -238,7 +239,7 @@ def test_pour_v1_recipes_learn_from_the_reward_a_few_hundred_steps(algo, tmp_pat
 
 @pytest.mark.slow
 def test_evaluate_and_search_at_tiny_size():
-    from pour_gym.agents.scripted import ScriptedPourPolicy
+    from pour_gym.agents.policies.scripted import ScriptedPourPolicy
 
     policy = ScriptedPourPolicy()
     small = {"source_particles": 300, "amount_range": (40, 80)}
@@ -260,7 +261,7 @@ def test_evaluate_and_search_at_tiny_size():
     with pytest.raises(InputError, match="objective"):
         search("train", objective="speed")
     # From the expert: its first score is the expert's own on the same seeds.
-    from pour_gym.agents.search import episode_returns, score
+    from pour_gym.agents.policies.search import episode_returns, score
     from pour_gym.envs import make
 
     doc = search("red_cup", generations=1, population=2, episodes=1, env_kwargs=small,
@@ -276,7 +277,7 @@ def test_evaluate_and_search_at_tiny_size():
 
 @pytest.mark.slow
 def test_poc_at_tiny_size():
-    from pour_gym.agents.poc import KernelRegression, poc_table, run_poc
+    from pour_gym.agents.thesis.poc import KernelRegression, poc_table, run_poc
 
     # The regression reproduces its samples where they are dense.
     x = np.column_stack([np.linspace(0, 100, 50), np.linspace(0, 3, 50)])
@@ -292,7 +293,7 @@ def test_poc_at_tiny_size():
 
 
 def test_fit_sill_finds_the_onset_of_synthetic_pours():
-    from pour_gym.agents.poc import fit_sill
+    from pour_gym.agents.thesis.poc import fit_sill
 
     # f4 = (delta - 40) - 1000 * sill particles; pours ran from 47.6 degrees on.
     deltas = np.linspace(40.0, 60.0, 41)
@@ -313,7 +314,7 @@ def test_closed_loop_poc_pours_twenty_particles():
     error with them (red cup, seed 101: 4 particles on the Rocket Lake of 2026-12-03, 0-2
     on the machines before); the table's mean moved between 0.86 and 1.38 across them.
     """
-    from pour_gym.agents.poc import run_poc
+    from pour_gym.agents.thesis.poc import run_poc
 
     doc = run_poc(target=20, policy="closed-loop", episodes=3, seed=100)
     assert len(doc["rows"]) == 21
@@ -332,13 +333,13 @@ def test_a_sampling_policy_is_the_same_for_the_same_seed_and_leaves_torch_alone(
     import gymnasium as gym
     import torch
 
-    from pour_gym.agents.rollout import SampledPolicy, rollout, sb3_policy
+    from pour_gym.agents.policies.rollout import SampledPolicy, rollout, sb3_policy
     from pour_gym.agents.training import load_run
 
     run = load_run("pour-v1-red-cup-features")
     sampled = sb3_policy(run)
     assert isinstance(sampled, SampledPolicy)  # as its config says (stochastic_eval)
-    from pour_gym.agents.evaluate import load_policy
+    from pour_gym.agents.evaluation.evaluate import load_policy
 
     mean = load_policy("pour-v1-red-cup-features", actions="mean").policy
     assert not isinstance(mean, SampledPolicy)

@@ -8,14 +8,14 @@ import numpy as np
 import pytest
 from scipy.stats import mannwhitneyu, trim_mean
 
-from pour_gym.agents.aggregate import (
+from pour_gym.agents.evaluation.aggregate import (
     bootstrap_interval,
     iqm,
     mean_score,
     normalised,
     probability_of_improvement,
 )
-from pour_gym.agents.baselines import baselines_report
+from pour_gym.agents.evaluation.baselines import baselines_report
 
 
 def _rliable_improvement(x: np.ndarray, y: np.ndarray) -> float:

@@ -7,8 +7,8 @@ import json
 import numpy as np
 import pytest
 
-from pour_gym.agents.aggregate import mean_interval
-from pour_gym.agents.baselines import baselines_report, training_kind
+from pour_gym.agents.evaluation.aggregate import mean_interval
+from pour_gym.agents.evaluation.baselines import baselines_report, training_kind
 from pour_gym.errors import InputError
 
 

@@ -92,15 +92,15 @@ def test_measure_needs_a_watertight_mesh(tmp_path, cli):
 
 def test_evaluate_runs_a_searched_policy_and_rejects_other_json(tmp_path, cli):
     # The packaged red-cup search.
-    searched = str(Path(__file__).resolve().parents[1] / "agents/poc_search_red_cup_20.json")
+    searched = str(Path(__file__).resolve().parents[1] / "agents/thesis/poc_search_red_cup_20.json")
     doc = json.loads(cli("evaluate", searched, "--objects", "red_cup", "--episodes", "1",
                          "--json").stdout)  # fmt: skip
     row = doc["rows"][0]
     assert row["object"] == "red_cup" and row["trained_on"] is True
     # The command evaluates the searched parameters, at the documented first seed.
-    from pour_gym.agents.evaluate import evaluate_policy
-    from pour_gym.agents.scripted import ScriptedPourPolicy
-    from pour_gym.agents.search import load_search
+    from pour_gym.agents.evaluation.evaluate import evaluate_policy
+    from pour_gym.agents.policies.scripted import ScriptedPourPolicy
+    from pour_gym.agents.policies.search import load_search
 
     found = load_search(searched)
     policy = ScriptedPourPolicy(**found["best"])

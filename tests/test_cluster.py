@@ -37,7 +37,7 @@ def test_addresses_are_checked():
 
 
 def test_sweep_files_are_checked_and_expand_to_a_grid(tmp_path):
-    from pour_gym.agents.sweep import load_spec, trials
+    from pour_gym.agents.training.sweep import load_spec, trials
 
     spec = tmp_path / "s.yaml"
     spec.write_text("algo: ppo\ntimesteps: 100\ngrid:\n  seed: [0, 1, 2]\n  obs_mode: [state]\n")
@@ -71,7 +71,7 @@ def ray_local():
 
 @pytest.mark.slow
 def test_search_on_ray_equals_the_serial_search(ray_local):
-    from pour_gym.agents.search import search
+    from pour_gym.agents.policies.search import search
 
     kwargs = {
         "objects": "red_cup",
@@ -90,7 +90,7 @@ def test_search_on_ray_equals_the_serial_search(ray_local):
 
 @pytest.mark.slow
 def test_experiment_on_ray_equals_the_serial_experiment(ray_local):
-    from pour_gym.agents.experiments import collect
+    from pour_gym.agents.thesis.experiments import collect
 
     objects = ("red_cup", "standard_bowl")
     whole = collect("tilt", objects, 5, seed=11, chunk=5)
@@ -122,7 +122,7 @@ def _sweep_spec(path: Path, seeds: list[int]) -> Path:
 
 @pytest.mark.slow
 def test_sweep_runs_four_trials_on_ray_and_resumes(tmp_path, ray_local):
-    from pour_gym.agents.sweep import sweep
+    from pour_gym.agents.training.sweep import sweep
 
     spec = _sweep_spec(tmp_path / "sweep.yaml", [0, 1])
     doc = sweep(spec, tmp_path / "out", address="local")
@@ -257,7 +257,7 @@ def test_sweep_on_a_two_node_cluster_uses_both_nodes(tmp_path):
 def test_study_report_keeps_every_seed_of_a_sweep(tmp_path):
     """Runs of one env and mode with different seeds (a sweep's) are averaged, with their
     spread; none overwrites another."""
-    from pour_gym.agents.study import study_report
+    from pour_gym.agents.evaluation.generalisation import study_report
 
     unseen = {0: (0.2, 0.4), 1: (0.6, 0.8), 2: (1.0, 1.0)}  # standard_cup, high_cup per seed
     runs = tmp_path / "runs"

@@ -9,8 +9,8 @@ import torch
 from gymnasium import spaces
 
 import pour_gym  # noqa: F401 - registers the environments
-from pour_gym.agents.curriculum import TrainingStarts
-from pour_gym.agents.demonstrations import (
+from pour_gym.agents.training.curriculum import TrainingStarts
+from pour_gym.agents.training.demonstrations import (
     Demonstrations,
     DemoReplayBuffer,
     collect_demonstrations,
@@ -140,7 +140,7 @@ def test_behaviour_cloning_fits_the_actor_and_the_term_holds_it():
 def test_noisy_demonstrations_execute_noise_and_keep_the_expert_labels():
     """With noise the executed actions differ from the labels by about the noise, and the
     labels are the scripted policy's own actions in the observed states (DART)."""
-    from pour_gym.agents.scripted import ScriptedPourPolicy
+    from pour_gym.agents.policies.scripted import ScriptedPourPolicy
 
     kwargs = {"objects": ["red_cup"]}
     sigma = (0.0, 0.0, 0.0, 0.1)

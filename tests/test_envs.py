@@ -15,8 +15,8 @@ import pytest
 from gymnasium.utils.env_checker import check_env as gym_check_env
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
-from pour_gym.agents.rollout import rollout
-from pour_gym.agents.scripted import ScriptedPourPolicy
+from pour_gym.agents.policies.rollout import rollout
+from pour_gym.agents.policies.scripted import ScriptedPourPolicy
 from pour_gym.envs import ENV_IDS, ENVS, POUR, POUR_V0, POUR_V1, entry, task_of
 from pour_gym.features import fluid_features, relative_distance_height
 from pour_gym.objects import cylinder_cup
@@ -310,7 +310,7 @@ def test_scripted_policy_pours_the_amount(split):
 @pytest.mark.slow
 def test_experiments_at_tiny_size(tmp_path):
     """Both thesis experiments run end to end and their numbers are sane."""
-    from pour_gym.agents.experiments import roc_curve, run_experiment
+    from pour_gym.agents.thesis.experiments import roc_curve, run_experiment
 
     fpr, tpr = roc_curve(np.array([0.9, 0.8, 0.3, 0.1]), np.array([1, 1, 0, 0], bool))
     assert fpr[0] == tpr[0] == 0.0 and fpr[-1] == tpr[-1] == 1.0

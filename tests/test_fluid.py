@@ -284,8 +284,8 @@ def test_scripted_pours_from_the_scanned_mugs_spill_nothing():
     import gymnasium as gym
 
     import pour_gym  # noqa: F401 - registers the environments
-    from pour_gym.agents.rollout import rollout
-    from pour_gym.agents.scripted import ScriptedPourPolicy
+    from pour_gym.agents.policies.rollout import rollout
+    from pour_gym.agents.policies.scripted import ScriptedPourPolicy
 
     env = gym.make("PourGym/Pour-v0", objects="all,real", num_threads=1, max_episode_steps=250)
     for source, seed in (("ycb_mug", 50000), ("pybullet_mug", 50003)):

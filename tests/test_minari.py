@@ -14,7 +14,7 @@ minari = pytest.importorskip("minari")
 def test_dataset_loads_and_replays(tmp_path, monkeypatch):
     """``minari.load_dataset`` gives every step; a replay from the stored seed matches it."""
     monkeypatch.setenv("MINARI_DATASETS_PATH", str(tmp_path))
-    from pour_gym.agents.minari_dataset import record_minari_dataset
+    from pour_gym.agents.training.minari_dataset import record_minari_dataset
 
     kwargs = {**entry(POUR_V1).quick, "objects": ["red_cup"], "num_threads": 1}
     record_minari_dataset("pourgym/test-expert-v0", POUR_V1, kwargs, 2, seed=3, noise=0.05,

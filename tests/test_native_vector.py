@@ -156,7 +156,7 @@ def test_bad_vector_arguments_are_named():
 def test_the_sb3_adapter_steps_what_sb3s_dummy_vec_env_steps():
     """train.py's native vector env against SB3's own, same seeds and actions: the same
     observations, rewards, dones, terminal observations and episode statistics."""
-    from pour_gym.agents.curriculum import TrainingStarts
+    from pour_gym.agents.training.curriculum import TrainingStarts
     from pour_gym.agents.training.vector import training_vec_env
 
     kwargs = {"objects": "red_cup", "amount_range": (40, 80), "max_episode_steps": 8}

@@ -11,8 +11,8 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from pour_gym.agents.rollout import rollout
-from pour_gym.agents.scripted import ScriptedPourPolicy
+from pour_gym.agents.policies.rollout import rollout
+from pour_gym.agents.policies.scripted import ScriptedPourPolicy
 from pour_gym.apps.soak import soak
 from pour_gym.envs import PANDA_POUR_V0, entry
 from pour_gym.envs.holders import JOINT_NAMES, PandaHolder

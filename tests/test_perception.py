@@ -48,8 +48,8 @@ def test_pour_with_perceived_features_keeps_the_physics_and_changes_what_is_seen
     fluid and counts; the scripted policy still pours the amount from what it sees."""
     import gymnasium as gym
 
-    from pour_gym.agents.rollout import rollout
-    from pour_gym.agents.scripted import ScriptedPourPolicy
+    from pour_gym.agents.policies.rollout import rollout
+    from pour_gym.agents.policies.scripted import ScriptedPourPolicy
     from pour_gym.envs import POUR
     from pour_gym.envs.pour import FEATURE_NAMES
 

@@ -154,8 +154,8 @@ def test_a_member_is_labelled_by_warping_and_cached(tmp_path):
 
 @pytest.mark.slow
 def test_the_scripted_policy_pours_between_procedural_members():
-    from pour_gym.agents.rollout import rollout
-    from pour_gym.agents.scripted import ScriptedPourPolicy
+    from pour_gym.agents.policies.rollout import rollout
+    from pour_gym.agents.policies.scripted import ScriptedPourPolicy
     from pour_gym.envs import POUR, POUR_V0, make
 
     env = make(POUR_V0, source_objects=["procedural:test#2"], target_objects=["procedural:test#3"])
@@ -192,7 +192,7 @@ def test_results_group_by_shape_parameter_buckets():
 
 
 def test_warping_over_a_family_reports_iou_per_bucket():
-    from pour_gym.agents.family_study import family_warping, family_warping_report
+    from pour_gym.agents.evaluation.family import family_warping, family_warping_report
 
     doc = family_warping("procedural:2@11")
     assert len(doc["members"]) + len(doc["refused"]) == 2
@@ -207,7 +207,7 @@ def test_warping_over_a_family_reports_iou_per_bucket():
 
 
 def test_wilson_interval_matches_the_textbook():
-    from pour_gym.agents.aggregate import wilson_interval
+    from pour_gym.agents.evaluation.aggregate import wilson_interval
 
     lo, hi = wilson_interval(5, 10)
     assert (lo, hi) == pytest.approx((0.2366, 0.7634), abs=1e-4)

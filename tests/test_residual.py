@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 from test_agents import train_command
 
-from pour_gym.agents.residual import PHASES, ExpertResidual, ResidualConfig, ResidualPolicy
-from pour_gym.agents.rollout import rollout
-from pour_gym.agents.scripted import ScriptedPourPolicy, tilt_settings
+from pour_gym.agents.policies.residual import PHASES, ExpertResidual, ResidualConfig, ResidualPolicy
+from pour_gym.agents.policies.rollout import rollout
+from pour_gym.agents.policies.scripted import ScriptedPourPolicy, tilt_settings
 from pour_gym.envs import make
 from pour_gym.errors import InputError
 
@@ -81,7 +81,7 @@ def test_the_residual_recipe_trains_and_its_run_acts_with_the_expert(tmp_path):
         "--set", "batch_size=32", "--eval-objects", "red_cup,broad_cup", "--eval-episodes", "1",
         "--curve-every", "128", "--curve-episodes", "1",
         "--env-kwargs", json.dumps({"amount_range": [40, 80]}),
-        "--set", "env_wrapper=[{pour_gym.agents.curriculum.TrainingStarts: "
+        "--set", "env_wrapper=[{pour_gym.agents.training.curriculum.TrainingStarts: "
                  "{near_target: 0.5, fill_margin: [20, 60]}}]",
     )  # fmt: skip
     done = subprocess.run(train_command(out, *options), capture_output=True, text=True,
@@ -93,7 +93,7 @@ def test_the_residual_recipe_trains_and_its_run_acts_with_the_expert(tmp_path):
     # Two updates away from a correction of 0, the policy still pours as the expert does.
     assert [r["object"] for r in doc["rows"]] == ["red_cup", "broad_cup"]
     assert all(r["outcome_never_poured"] == 0 for r in doc["rows"])
-    from pour_gym.agents.rollout import sb3_policy
+    from pour_gym.agents.policies.rollout import sb3_policy
 
     assert isinstance(sb3_policy(load_run(out / "model.zip")), ResidualPolicy)
     missing = subprocess.run(train_command(tmp_path / "x", *options[:4], "--recipe", "nope"),
@@ -103,7 +103,7 @@ def test_the_residual_recipe_trains_and_its_run_acts_with_the_expert(tmp_path):
 
 def test_the_shipped_residual_acts_with_its_expert_and_pours():
     """The shipped model loads as expert plus correction and pours a small episode."""
-    from pour_gym.agents.evaluate import load_policy
+    from pour_gym.agents.evaluation.evaluate import load_policy
 
     loaded = load_policy("pour-v0-red-cup-residual")
     assert isinstance(loaded.policy, ResidualPolicy) and loaded.env_id == "PourGym/Pour-v0"

@@ -24,7 +24,7 @@ def _ppo(env_id: str, runners: int) -> dict:
     # A short folder of our own for Ray's session (its socket paths must stay short).
     with tempfile.TemporaryDirectory(prefix="rl", dir="/tmp") as temp:
         done = subprocess.run(
-            [str(RLLIB_PYTHON), "-m", "pour_gym.agents.rllib", "--env", env_id,
+            [str(RLLIB_PYTHON), "-m", "pour_gym.agents.training.rllib", "--env", env_id,
              "--env-runners", str(runners), "--batch-size", "128", "--ray-temp-dir", temp,
              "--json"],
             capture_output=True, text=True, timeout=600, cwd=ROOT,
@@ -62,7 +62,7 @@ def test_a_missing_rllib_ends_with_the_extra_named():
 
     # Ray made unimportable, as where the extra is not installed.
     code = (
-        "import sys; sys.modules['ray'] = None; from pour_gym.agents.rllib import main; "
+        "import sys; sys.modules['ray'] = None; from pour_gym.agents.training.rllib import main; "
         "sys.exit(main(['--env', 'PourGym/TiltPour-v0']))"
     )
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT)

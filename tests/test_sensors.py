@@ -12,7 +12,7 @@ from gymnasium.utils.env_checker import check_env
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import pour_gym  # noqa: F401  (registers the envs)
-from pour_gym.agents.scripted import ScriptedPourPolicy
+from pour_gym.agents.policies.scripted import ScriptedPourPolicy
 from pour_gym.sim.raster import cluster_vertices
 from pour_gym.sim.sensors import SEGMENTS, SensorConfig
 

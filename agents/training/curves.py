@@ -19,8 +19,9 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from pour_gym.agents.rollout import rollout, sb3_policy
+from pour_gym.agents.policies.rollout import rollout, sb3_policy
 from pour_gym.agents.training.config import TrainConfig
+from pour_gym.agents.training.moved_modules import importable_old_paths
 from pour_gym.agents.training.runs import (
     BEST,
     NORMALISER,
@@ -139,6 +140,7 @@ def record_curve_from_checkpoints(config: TrainConfig, out: Path, env_kwargs: di
         if stats is not None:
             with open(stats, "rb") as fh:
                 normaliser = pickle.load(fh)  # a VecNormalize without its env
+        importable_old_paths()  # a checkpoint saved before the agents were grouped
         agent = cls.load(model, device="cpu")
         points.append(
             record_curve_point(config, out, agent, normaliser, env_kwargs, x=("timesteps", step))

@@ -7,8 +7,8 @@ import json
 import shutil
 import time
 
-from pour_gym.agents.evaluate import evaluate_policy, evaluation_table
-from pour_gym.agents.rollout import sb3_policy
+from pour_gym.agents.evaluation.evaluate import evaluate_policy, evaluation_table
+from pour_gym.agents.policies.rollout import sb3_policy
 from pour_gym.agents.training.config import TrainConfig, algorithm
 from pour_gym.agents.training.curves import (
     keep_best_of_curve,
@@ -16,6 +16,7 @@ from pour_gym.agents.training.curves import (
     record_curve_from_checkpoints,
     training_callbacks,
 )
+from pour_gym.agents.training.moved_modules import importable_old_paths
 from pour_gym.agents.training.recipes import Recipe, load_recipe
 from pour_gym.agents.training.runs import (
     BEST,
@@ -99,7 +100,7 @@ def train(config: TrainConfig) -> dict:
     if demos_cfg:
         if config.algo not in ("sac", "tqc", "bc"):
             raise InputError(f"demonstrations need sac, tqc or bc, not {config.algo}")
-        from pour_gym.agents.demonstrations import DemoReplayBuffer
+        from pour_gym.agents.training.demonstrations import DemoReplayBuffer
 
         params["replay_buffer_class"] = DemoReplayBuffer
         params["replay_buffer_kwargs"] = {"demo_share": demos_cfg.share}
@@ -147,6 +148,7 @@ def train(config: TrainConfig) -> dict:
         stats = ckpt_dir / f"vecnormalize_{done}_steps.pkl"
         if recipe.normalize and stats.is_file():
             venv = VecNormalize.load(str(stats), venv.venv)
+        importable_old_paths()  # a checkpoint saved before the agents were grouped
         model = cls.load(checkpoint, env=venv, seed=config.seed, device="cpu")
         buffer = ckpt_dir / f"model_replay_buffer_{done}_steps.pkl"
         if buffer.is_file() and hasattr(model, "load_replay_buffer"):
@@ -154,7 +156,7 @@ def train(config: TrainConfig) -> dict:
         demos = getattr(getattr(model, "replay_buffer", None), "demonstrations", None)
         if demos_cfg and demos_cfg.bc_weight > 0 and demos is not None:
             # The behaviour-cloning term lives in the actor's optimiser, not in the save.
-            from pour_gym.agents.demonstrations import regularise_actor
+            from pour_gym.agents.training.demonstrations import regularise_actor
 
             normaliser = venv if isinstance(venv, VecNormalize) else None
             regularise_actor(model, demos, normaliser, weight=demos_cfg.bc_weight)

@@ -21,10 +21,11 @@ from typing import TYPE_CHECKING
 import gymnasium as gym
 import yaml
 
+from pour_gym.agents.training.moved_modules import importable_old_paths
 from pour_gym.errors import InputError
 
 if TYPE_CHECKING:  # the residual module loads the envs (pybullet): only when a recipe has one
-    from pour_gym.agents.residual import ResidualConfig
+    from pour_gym.agents.policies.residual import ResidualConfig
 
 # The keys the training reads (the rest are the algorithm's constructor arguments).
 RECIPE_KEYS = {
@@ -38,7 +39,7 @@ RECIPE_KEYS = {
     "stochastic_eval": "evaluate and draw the curve with the policy's sampled actions (seeded)",
     "residual": "learn a correction to the scripted expert's actions (see ResidualConfig)",
 }
-RESIDUAL_WRAPPER = "pour_gym.agents.residual.ExpertResidual"
+RESIDUAL_WRAPPER = "pour_gym.agents.policies.residual.ExpertResidual"
 
 
 @dataclass
@@ -49,7 +50,7 @@ class DemoConfig:
     Gaussian ``noise`` on the executed actions (one standard deviation, or one per action)
     and its clean actions as labels; keep them as a ``share`` of every replay batch;
     behaviour-clone the actor on them for ``bc_steps`` steps and keep a cloning term of
-    weight ``bc_weight`` in its every update (:mod:`pour_gym.agents.demonstrations`). With
+    weight ``bc_weight`` in its every update (:mod:`pour_gym.agents.training.demonstrations`). With
     ``ignore_constant`` the network is blind to the inputs the demonstrations never vary,
     and to the inputs ``hide`` names. SAC and TQC only (they have an actor).
     """
@@ -109,7 +110,7 @@ class Recipe:
     def wrapper(self) -> Callable[[gym.Env], gym.Env] | None:
         """A function that wraps an env in :attr:`env_wrapper`'s wrappers (None if none).
 
-        With a :attr:`residual`, :class:`~pour_gym.agents.residual.ExpertResidual` wraps
+        With a :attr:`residual`, :class:`~pour_gym.agents.policies.residual.ExpertResidual` wraps
         them all (the learner acts on the expert's episodes as the curricula start them).
         It pickles by reference, so vector envs' worker processes rebuild it.
         """
@@ -177,7 +178,7 @@ def load_recipe(
     demos = own.get("demonstrations")
     residual = None
     if own.get("residual"):
-        from pour_gym.agents.residual import ResidualConfig
+        from pour_gym.agents.policies.residual import ResidualConfig
 
         residual = ResidualConfig.from_recipe(own["residual"])
     recipe = Recipe(
@@ -232,6 +233,7 @@ def wrapper_specs(entries: list) -> list[tuple[str, dict]]:
 def _wrapper_class(name: str) -> type:
     module, _, cls = name.rpartition(".")
     try:
+        importable_old_paths()  # a run's config.json from before the agents were grouped
         return getattr(importlib.import_module(module), cls)
     except (ImportError, AttributeError, ValueError):
         raise InputError(f"env_wrapper names {name!r}, which cannot be imported") from None

@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from pour_gym.agents.training.config import algorithm
+from pour_gym.agents.training.moved_modules import importable_old_paths
 from pour_gym.assets import expand_containers
 from pour_gym.envs import Task
 from pour_gym.errors import InputError
@@ -102,6 +103,7 @@ def load_run(model_path: str | Path, algo: str | None = None) -> Run:
             UserWarning,
             stacklevel=2,
         )
+    importable_old_paths()  # a model saved before the agents were grouped
     model = algorithm(name).load(path, device="cpu")
     normaliser = None
     stats = path.parent / NORMALISER

@@ -3,7 +3,7 @@
 A recipe's ``demonstrations`` key (:class:`~pour_gym.agents.training.recipes.DemoConfig`)
 records the expert in the training env, puts its transitions in the replay buffer, fits
 the observation normaliser to them, hides inputs that carry one container's size, and
-behaviour-clones the actor (:mod:`pour_gym.agents.demonstrations`).
+behaviour-clones the actor (:mod:`pour_gym.agents.training.demonstrations`).
 """
 
 from __future__ import annotations
@@ -74,7 +74,7 @@ def start_from_demonstrations(
     Args:
         config: the run's config.
         model: the SB3 algorithm (SAC or TQC, with a
-            :class:`~pour_gym.agents.demonstrations.DemoReplayBuffer`).
+            :class:`~pour_gym.agents.training.demonstrations.DemoReplayBuffer`).
         venv: the training's vector env.
         env_kwargs: the training env's arguments.
         demos_cfg: the recipe's ``demonstrations``.
@@ -86,7 +86,7 @@ def start_from_demonstrations(
     """
     from stable_baselines3.common.vec_env import VecNormalize
 
-    from pour_gym.agents.demonstrations import (
+    from pour_gym.agents.training.demonstrations import (
         collect_demonstrations,
         pretrain_actor,
         regularise_actor,

@@ -9,10 +9,10 @@ table() {
     { printf '# %s\n\nWritten by `%s` (`docs/poc/run.sh`).\n\n' "$title" "$*"; "$@"; } > "$file"
 }
 # Policy search on the red cup alone, 20 particles into the standard bowl (packaged as
-# agents/poc_search_red_cup_20.json, the closed-loop policy's default parameters).
+# agents/thesis/poc_search_red_cup_20.json, the closed-loop policy's default parameters).
 pour-gym search --objects red_cup --target-objects standard_bowl --objective error \
     --target-amount 20 --generations 10 --population 8 --episodes 6 --seed 1 --out docs/poc
-cp docs/poc/search.json agents/poc_search_red_cup_20.json
+cp docs/poc/search.json agents/thesis/poc_search_red_cup_20.json
 # The thesis's open-loop policy: 60 red-cup samples, then the seven cups, 3 pours each.
 table docs/poc/poc_thesis_20.md "Proof of concept: the thesis's open-loop policy, 20 particles" \
     pour-gym poc --policy thesis --samples 60 --episodes 3 --seed 100 --out docs/poc

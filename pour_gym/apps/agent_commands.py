@@ -67,7 +67,7 @@ def cmd_pour(args: argparse.Namespace) -> Output:
 
 def cmd_experiment(args: argparse.Namespace) -> Output:
     """The thesis's experiments 1 and 2 with ROC curves."""
-    from pour_gym.agents.experiments import run_experiment
+    from pour_gym.agents.thesis.experiments import run_experiment
 
     objects = None
     if args.objects:
@@ -85,7 +85,7 @@ def cmd_experiment(args: argparse.Namespace) -> Output:
 
 def cmd_evaluate(args: argparse.Namespace) -> Output:
     """Evaluate a trained model, the scripted policy or a searched one on the containers."""
-    from pour_gym.agents.evaluate import evaluate_policy, evaluation_table, load_policy
+    from pour_gym.agents.evaluation.evaluate import evaluate_policy, evaluation_table, load_policy
     from pour_gym.assets import expand_containers
 
     loaded = load_policy(args.policy, args.env, args.algo, args.actions)
@@ -108,7 +108,7 @@ def cmd_evaluate(args: argparse.Namespace) -> Output:
 
 def cmd_search(args: argparse.Namespace) -> Output:
     """CMA-ES over the scripted policy's parameters."""
-    from pour_gym.agents.search import search
+    from pour_gym.agents.policies.search import search
 
     doc = search(
         args.objects,
@@ -136,7 +136,7 @@ def cmd_search(args: argparse.Namespace) -> Output:
 
 def cmd_sweep(args: argparse.Namespace) -> Output:
     """A grid of training runs (Ray Tune with --address)."""
-    from pour_gym.agents.sweep import load_spec, sweep, sweep_table
+    from pour_gym.agents.training.sweep import load_spec, sweep, sweep_table
 
     _, grid = load_spec(args.spec)
     doc = sweep(args.spec, args.out, address=args.address)
@@ -145,7 +145,7 @@ def cmd_sweep(args: argparse.Namespace) -> Output:
 
 def cmd_poc(args: argparse.Namespace) -> Output:
     """The thesis's proof of concept, Table 6.1."""
-    from pour_gym.agents.poc import poc_table, run_poc
+    from pour_gym.agents.thesis.poc import poc_table, run_poc
     from pour_gym.fluid.pbf import PBFConfig
 
     target = args.target
@@ -165,7 +165,7 @@ def cmd_poc(args: argparse.Namespace) -> Output:
 
 def cmd_demonstrations(args: argparse.Namespace) -> Output:
     """The scripted expert's episodes as a Minari dataset."""
-    from pour_gym.agents.minari_dataset import record_minari_dataset
+    from pour_gym.agents.training.minari_dataset import record_minari_dataset
     from pour_gym.assets import expand_containers
 
     env_kwargs = {"objects": list(expand_containers(args.objects)), "obs_mode": args.obs_mode}
@@ -191,7 +191,7 @@ def cmd_demonstrations(args: argparse.Namespace) -> Output:
 
 def cmd_train(args: argparse.Namespace) -> Output:
     """Train an SB3 agent and evaluate it (the same command as ``train.py``)."""
-    from pour_gym.agents.evaluate import evaluation_table
+    from pour_gym.agents.evaluation.evaluate import evaluation_table
     from pour_gym.agents.training import config_from_args, train
 
     result = train(config_from_args(args))

@@ -217,7 +217,7 @@ def cmd_report(args: argparse.Namespace) -> Output:
     if args.reference and args.what != "baselines":
         raise InputError("--reference is for report baselines")
     if args.what == "generalisation" and args.family:
-        from pour_gym.agents.family_study import family_study, write_family_study
+        from pour_gym.agents.evaluation.family import family_study, write_family_study
 
         if not args.out:
             raise InputError("report generalisation --family needs --out DIR")
@@ -239,12 +239,12 @@ def cmd_report(args: argparse.Namespace) -> Output:
         doc = {"pictures": [str(p) for p in paths]}
         return (doc, lambda: "\n".join(doc["pictures"]))
     if args.what == "baselines":
-        from pour_gym.agents.baselines import REPORT, baselines_report
+        from pour_gym.agents.evaluation.baselines import REPORT, baselines_report
 
         doc = baselines_report(args.runs, reference=args.reference)
         return (doc, lambda: REPORT.read_text())
     if args.what == "generalisation":
-        from pour_gym.agents.study import study_report
+        from pour_gym.agents.evaluation.generalisation import study_report
 
         if not args.runs or not args.out:
             raise InputError(
@@ -253,7 +253,7 @@ def cmd_report(args: argparse.Namespace) -> Output:
         summary = study_report(args.runs, args.out)
         return (summary, lambda: (Path(args.out) / "report.md").read_text())
     if args.what == "warping" and args.family:
-        from pour_gym.agents.family_study import family_warping, family_warping_report
+        from pour_gym.agents.evaluation.family import family_warping, family_warping_report
 
         doc = family_warping(args.family)
         return (doc, lambda: family_warping_report(doc))

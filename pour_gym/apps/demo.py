@@ -121,8 +121,8 @@ def episode_gif(
     """
     from tqdm import tqdm
 
-    from pour_gym.agents.rollout import rollout
-    from pour_gym.agents.scripted import ScriptedPourPolicy, tilt_settings
+    from pour_gym.agents.policies.rollout import rollout
+    from pour_gym.agents.policies.scripted import ScriptedPourPolicy, tilt_settings
     from pour_gym.report.video import write_video
 
     try:

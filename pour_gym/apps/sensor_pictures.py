@@ -29,7 +29,7 @@ def observe_scene(env_id: str, seed: int = 0) -> tuple[dict, str]:
     import gymnasium as gym
 
     import pour_gym  # noqa: F401  (registers the envs)
-    from pour_gym.agents.scripted import ScriptedPourPolicy, tilt_settings
+    from pour_gym.agents.policies.scripted import ScriptedPourPolicy, tilt_settings
 
     env = gym.make(env_id, objects="red_cup", obs_mode=("features", *MODES))
     if "Tilt" in env_id:

@@ -24,7 +24,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from pour_gym.agents.rollout import Step, rollout
+from pour_gym.agents.policies.rollout import Step, rollout
 from pour_gym.envs import POUR_V0, make, task_of
 from pour_gym.errors import SimulationError
 from pour_gym.report.tables import markdown_table

@@ -5,7 +5,7 @@ what was measured on it (the warping's IoU per part, a policy's success). :func:
 groups the rows by each parameter, the categorical ones by value and the lengths by
 fixed bins, and averages every measured value in each group; :func:`bucket_tables` writes
 that as markdown. The studies themselves (warping, policies) are in
-:mod:`pour_gym.agents.family_study`.
+:mod:`pour_gym.agents.evaluation.family`.
 """
 
 from __future__ import annotations

@@ -9,7 +9,7 @@ way of acting, the mean of poured / target.
 import numpy as np
 
 import pour_gym  # noqa: F401  (registers the ids)
-from pour_gym.agents.evaluate import load_policy
+from pour_gym.agents.evaluation.evaluate import load_policy
 from pour_gym.envs import make, task_of
 
 for actions in ("mean", "sampled"):

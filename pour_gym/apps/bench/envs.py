@@ -8,8 +8,8 @@ import sys
 import numpy as np
 from tqdm import tqdm
 
-from pour_gym.agents.rollout import rollout
-from pour_gym.agents.scripted import ScriptedPourPolicy
+from pour_gym.agents.policies.rollout import rollout
+from pour_gym.agents.policies.scripted import ScriptedPourPolicy
 from pour_gym.apps.bench.vector import (
     bench_family_memory,
     bench_memory,

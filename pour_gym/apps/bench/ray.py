@@ -33,8 +33,8 @@ def bench_ray(repeats: int = 3, machines: tuple[int, ...] = (1, 2, 4, 8)) -> dic
     import time
 
     from pour_gym.agents.cluster import require_ray
-    from pour_gym.agents.experiments import collect
-    from pour_gym.agents.search import search
+    from pour_gym.agents.policies.search import search
+    from pour_gym.agents.thesis.experiments import collect
 
     ray = require_ray()
     jobs = {  # name: (run, episodes in the job)

@@ -12,7 +12,7 @@ RLlib is an extra of its own (``pip install 'pour-gym[rllib]'``): ``ray[rllib]``
 Gymnasium 1.2.2, and the rest of the suite runs on Gymnasium 1.4, so ``make test``
 proves this path in a second virtual environment (``.venv-rllib``).
 
-    python -m pour_gym.agents.rllib --env PourGym/TiltPour-v0 --env-runners 2 --json
+    python -m pour_gym.agents.training.rllib --env PourGym/TiltPour-v0 --env-runners 2 --json
 
 trains PPO for one iteration and prints what it sampled.
 """
@@ -154,7 +154,7 @@ def ppo_iteration(
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m pour_gym.agents.rllib``: one PPO iteration; exit 2 on bad input."""
+    """``python -m pour_gym.agents.training.rllib``: one PPO iteration; exit 2 on bad input."""
     p = argparse.ArgumentParser(description="one RLlib PPO iteration on a pour-gym env")
     p.add_argument("--env", default=TILT_POUR_V0)
     p.add_argument("--env-runners", type=int, default=2)
@@ -170,7 +170,7 @@ def main(argv: list[str] | None = None) -> int:
         doc = ppo_iteration(args.env, args.env_runners, args.env_config, args.batch_size,
                             args.seed, args.ray_temp_dir)  # fmt: skip
     except InputError as exc:
-        print(f"pour_gym.agents.rllib: error: {exc}", file=sys.stderr)
+        print(f"pour_gym.agents.training.rllib: error: {exc}", file=sys.stderr)
         return 2
     if args.json:
         print(json.dumps(doc))

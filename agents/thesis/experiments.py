@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from pour_gym.agents.cluster import map_tasks, ray_session
-from pour_gym.agents.rollout import rollout
+from pour_gym.agents.policies.rollout import rollout
 from pour_gym.assets import SPLITS
 from pour_gym.envs import PARTICLE_DROP_V0, TILT_POUR_V0, make
 from pour_gym.errors import InputError

@@ -2,7 +2,7 @@
 
 A learner that must find by chance that pouring a little and stopping earns the success
 bonus seldom finds it (see docs/learning.md). The scripted policy
-(:mod:`pour_gym.agents.scripted`) does it on every thesis container. This module records
+(:mod:`pour_gym.agents.policies.scripted`) does it on every thesis container. This module records
 its episodes as transitions, keeps them in the replay buffer beside the learner's own
 (:class:`DemoReplayBuffer`: a fixed share of every batch, as in RLPD, Ball et al. 2023)
 and starts the actor from them by behaviour cloning (:func:`pretrain_actor`). The
@@ -34,8 +34,8 @@ from stable_baselines3.common.buffers import ReplayBuffer
 from stable_baselines3.common.type_aliases import ReplayBufferSamples
 from tqdm import tqdm
 
-from pour_gym.agents.rollout import Step, rollout
-from pour_gym.agents.scripted import ScriptedPourPolicy
+from pour_gym.agents.policies.rollout import Step, rollout
+from pour_gym.agents.policies.scripted import ScriptedPourPolicy
 from pour_gym.envs import make, task_of
 from pour_gym.envs.rules import tilt_action
 from pour_gym.errors import InputError
@@ -104,7 +104,7 @@ class NoisyExpert:
 
     Args:
         env: the Pour env, unwrapped (its state is read at every call).
-        expert: arguments of :class:`~pour_gym.agents.scripted.ScriptedPourPolicy`.
+        expert: arguments of :class:`~pour_gym.agents.policies.scripted.ScriptedPourPolicy`.
         sigma: (4,) standard deviations of the noise, action units.
         rng: the noise's generator.
 
@@ -171,7 +171,7 @@ def collect_demonstrations(
     observations recorded are the env's own, so a state agent's demonstrations hold
     state observations. Episodes start as the training's do: the env is wrapped as the
     recipe wraps its training envs (e.g. the curriculum
-    :class:`~pour_gym.agents.curriculum.TrainingStarts`, seeded by ``seed``).
+    :class:`~pour_gym.agents.training.curriculum.TrainingStarts`, seeded by ``seed``).
 
     Args:
         env_id: a Pour-v0 id (the scripted policy pours).
@@ -183,7 +183,7 @@ def collect_demonstrations(
         noise: standard deviation of the Gaussian noise added to the executed actions
             (one value, or one per action dimension), in action units; the expert's clean
             actions are kept as :attr:`Demonstrations.expert_actions`.
-        expert: arguments of the :class:`~pour_gym.agents.scripted.ScriptedPourPolicy`
+        expert: arguments of the :class:`~pour_gym.agents.policies.scripted.ScriptedPourPolicy`
             that demonstrates (its defaults if None).
         progress: show a progress bar.
 

@@ -1,7 +1,7 @@
 """Policy search (the thesis's future work, chapter 8): CMA-ES over a policy's parameters.
 
 The searched policy is the scripted features policy of Pour-v0
-(:class:`pour_gym.agents.scripted.ScriptedPourPolicy`); its parameters (where the lip goes,
+(:class:`pour_gym.agents.policies.scripted.ScriptedPourPolicy`); its parameters (where the lip goes,
 how fast it tilts, how it regulates the flow, how early it tilts back) are searched with
 CMA-ES (the ``cma`` package) in the unit cube of their ranges. The objective is the mean
 episode return, or, for a fixed target amount, the mean absolute amount error in
@@ -22,8 +22,8 @@ import numpy as np
 from tqdm import tqdm
 
 from pour_gym.agents.cluster import map_tasks, ray_session
-from pour_gym.agents.rollout import rollout
-from pour_gym.agents.scripted import ScriptedPourPolicy
+from pour_gym.agents.policies.rollout import rollout
+from pour_gym.agents.policies.scripted import ScriptedPourPolicy
 from pour_gym.assets import expand_containers
 from pour_gym.envs import POUR_V0
 from pour_gym.errors import InputError

@@ -152,14 +152,14 @@ def sb3_policy(model, deterministic: bool | None = None) -> Callable[[np.ndarray
             the run's config says (``stochastic_eval``), else the mean.
 
     A run that learnt a correction to the scripted expert (its config's ``residual``)
-    acts as :class:`~pour_gym.agents.residual.ResidualPolicy`: the expert plus the model.
+    acts as :class:`~pour_gym.agents.policies.residual.ResidualPolicy`: the expert plus the model.
     """
     normalise = getattr(model, "normalise", None)
     predictor = getattr(model, "model", model)
     config = getattr(model, "config", {})
     if deterministic is None:
         deterministic = not config.get("stochastic_eval", False)
-    from pour_gym.agents.residual import residual_policy
+    from pour_gym.agents.policies.residual import residual_policy
 
     if not deterministic:
         return residual_policy(SampledPolicy(predictor, normalise), config)

@@ -1,7 +1,7 @@
 """The scripted expert's episodes as a Minari dataset (Farama's offline-RL format).
 
 ``pour-gym demonstrations --minari NAME`` records the scripted policy
-(:class:`~pour_gym.agents.demonstrations.NoisyExpert`, noise optional) in a Pour env
+(:class:`~pour_gym.agents.training.demonstrations.NoisyExpert`, noise optional) in a Pour env
 and writes its episodes with Minari, so that ``minari.load_dataset(NAME)`` gives its
 observations, actions, rewards, terminations and truncations as any offline-RL library
 reads them. Every episode's reset seed is stored by Minari (``episode.id`` k was reset
@@ -24,8 +24,8 @@ import gymnasium as gym
 import numpy as np
 from tqdm import tqdm
 
-from pour_gym.agents.demonstrations import NoisyExpert, check_recording
-from pour_gym.agents.rollout import Step, rollout
+from pour_gym.agents.policies.rollout import Step, rollout
+from pour_gym.agents.training.demonstrations import NoisyExpert, check_recording
 from pour_gym.envs import make
 from pour_gym.errors import InputError
 
@@ -86,7 +86,7 @@ def record_minari_dataset(
         seed: the first episode's reset seed (episode k is reset with ``seed + k``).
         noise: standard deviation of Gaussian noise on the executed actions (one value or
             one per action), action units; 0 for the expert's own actions.
-        expert: arguments of the :class:`~pour_gym.agents.scripted.ScriptedPourPolicy`.
+        expert: arguments of the :class:`~pour_gym.agents.policies.scripted.ScriptedPourPolicy`.
         wrapper: wraps the env before recording (a curriculum's starts), or None.
         root: the datasets folder (Minari's own, ``~/.minari/datasets`` or
             ``$MINARI_DATASETS_PATH``, when None).

@@ -11,7 +11,7 @@ A row is one way of training (environment, algorithm, observation mode, whether 
 from the reward alone, cloned the expert, or cloned then learnt, and which model of a run
 was evaluated: the last step's or, with ``--keep-best``, the best curve point's): its seeds' mean
 of each metric, with a 95 % bootstrap interval over the seeds, and over the seeds and the
-unseen containers, rliable's aggregates (:mod:`pour_gym.agents.aggregate`): the
+unseen containers, rliable's aggregates (:mod:`pour_gym.agents.evaluation.aggregate`): the
 interquartile mean of the return normalised between a seeded random policy (0) and the
 scripted expert (1) on the same episodes, and the probability that a seed beats the expert
 on a container, each with a stratified-bootstrap interval.
@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pour_gym.agents.aggregate import (
+from pour_gym.agents.evaluation.aggregate import (
     bootstrap_interval,
     iqm,
     mean_interval,
@@ -431,7 +431,7 @@ def baselines_report(
         "uniformly from the action space, seeded per episode.",
         "",
         "The last two metrics follow rliable (Agarwal et al., 2021; "
-        "`pour_gym.agents.aggregate`), over the seeds x unseen containers: *normalised "
+        "`pour_gym.agents.evaluation.aggregate`), over the seeds x unseen containers: *normalised "
         "return* is each seed's mean return on a container as a share of the way from the "
         "random policy's (0) to the scripted expert's (1) on the same episodes (Minari's "
         "`ref_min_score` / `ref_max_score`), its interquartile mean (the mean of the middle "

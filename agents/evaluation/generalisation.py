@@ -113,8 +113,8 @@ def pour_matrix(run_dir: Path, episodes: int = 2, objects: tuple[str, ...] | Non
 
     Cached as ``matrix.json`` in the run directory (recomputed when the episodes differ).
     """
-    from pour_gym.agents.evaluate import evaluate_policy
-    from pour_gym.agents.rollout import sb3_policy
+    from pour_gym.agents.evaluation.evaluate import evaluate_policy
+    from pour_gym.agents.policies.rollout import sb3_policy
     from pour_gym.agents.training import load_run
     from pour_gym.objects import OBJECT_NAMES
 

@@ -5,7 +5,7 @@ environments label it) against the member's labels from construction, IoU per pa
 
 :func:`family_study`: every policy pours from each member into itself (source and target
 the same container, ``episodes`` episodes each, seeds training never used), exactly as
-:func:`~pour_gym.agents.evaluate.evaluate_policy` evaluates any container. The members'
+:func:`~pour_gym.agents.evaluation.evaluate.evaluate_policy` evaluates any container. The members'
 rows are then grouped by each shape parameter (:mod:`pour_gym.report.family`): success,
 amount error and spill per profile, cross-section, lip, handle and binned height, rim
 radius and wall, each success with a 95 % Wilson interval over the bucket's episodes.
@@ -20,8 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
-from pour_gym.agents.aggregate import wilson_interval
-from pour_gym.agents.evaluate import evaluate_policy, load_policy
+from pour_gym.agents.evaluation.aggregate import wilson_interval
+from pour_gym.agents.evaluation.evaluate import evaluate_policy, load_policy
 from pour_gym.errors import InputError
 from pour_gym.report.family import BINS, CATEGORIES, PARTS, bucket_tables, by_bucket, mean_of
 from pour_gym.report.tables import markdown_table
@@ -80,7 +80,7 @@ def family_study(
     Args:
         family: a procedural family (``procedural:test``).
         policies: ``"scripted"``, shipped model names or model files
-            (:func:`~pour_gym.agents.evaluate.load_policy`).
+            (:func:`~pour_gym.agents.evaluation.evaluate.load_policy`).
         episodes: episodes per member.
         seed: the first episode's seed.
         perceptions: where the features' geometry comes from, one row per policy each:

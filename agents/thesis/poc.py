@@ -25,8 +25,8 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from pour_gym.agents.rollout import rollout
-from pour_gym.agents.scripted import approach_lip
+from pour_gym.agents.policies.rollout import rollout
+from pour_gym.agents.policies.scripted import approach_lip
 from pour_gym.envs import POUR_V0
 from pour_gym.envs.pour import FEATURE_NAMES
 from pour_gym.envs.rules import UPRIGHT_DEG
@@ -180,7 +180,7 @@ def _episode(env, policy, source: str, seed: int, target_amount: int) -> dict:
 
 def choose_lip_offset(seed: int = 0) -> tuple[float, dict]:
     """The lip position p from the experiment-1 classifier trained on the red cup."""
-    from pour_gym.agents.experiments import collect
+    from pour_gym.agents.thesis.experiments import collect
     from pour_gym.warp.classifiers import LogisticRegression
 
     data = collect("drop", ("red_cup",), 200, seed)
@@ -263,7 +263,7 @@ def run_poc(
     then tilt to delta and hold for t chosen from it (open loop), as the thesis does.
     ``policy="closed-loop"``: the same lip point p, but the tilt and its duration are set
     while pouring from the fluid the features show leaving the source
-    (:class:`pour_gym.agents.scripted.ScriptedPourPolicy`, told the target amount), with
+    (:class:`pour_gym.agents.policies.scripted.ScriptedPourPolicy`, told the target amount), with
     the parameters of a policy search (``params``, a ``search.json``; by default the
     packaged red-cup search for 20 particles); delta and duration in the rows are then
     the largest tilt and the time spent pouring.
@@ -285,7 +285,7 @@ def run_poc(
     import gymnasium as gym
 
     import pour_gym  # noqa: F401 - registers the environments
-    from pour_gym.agents.search import load_policy
+    from pour_gym.agents.policies.search import load_policy
 
     if target < 1:
         raise InputError(f"the target must be at least one particle, not {target}")
@@ -299,7 +299,7 @@ def run_poc(
     if policy == "thesis":
         model, extra["estimate_samples"] = learn_estimate(env, offset, samples, seed)
     else:
-        pourer = load_policy(params or files("pour_gym.agents") / SEARCHED, target)
+        pourer = load_policy(params or files("pour_gym.agents.thesis") / SEARCHED, target)
         pourer.lip_offset = offset
         extra["params"] = {k: v for k, v in vars(pourer).items() if not k.startswith("_")}
     rows = []

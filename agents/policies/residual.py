@@ -1,9 +1,10 @@
 """Residual learning on the scripted expert: a learner that corrects the expert's actions.
 
-The executed action is the scripted expert's (:class:`~pour_gym.agents.scripted.ScriptedPourPolicy`)
-plus the learner's action times a small ``scale``, clipped to the action space. The learner
-sees the observation with the expert's proposed action and its phase (move, tilt, back)
-appended, so that it can tell what it corrects. A learner whose actions are 0 is the expert;
+The executed action is the scripted expert's
+(:class:`~pour_gym.agents.policies.scripted.ScriptedPourPolicy`) plus the learner's action
+times a small ``scale``, clipped to the action space. The learner sees the observation
+with the expert's proposed action and its phase (move, tilt, back) appended, so that it can
+tell what it corrects. A learner whose actions are 0 is the expert;
 one trained on the reward keeps what the expert does well and learns what it gets wrong
 (where its script stops the pour too late or too early), the usual way to improve on a
 hand-written controller with RL (Silver et al. 2018, "Residual Policy Learning"; Johannink
@@ -11,7 +12,8 @@ et al. 2019, "Residual Reinforcement Learning for Robot Control").
 
 Training wraps each env in :class:`ExpertResidual` (a recipe's ``residual`` key); a trained
 run acts through :class:`ResidualPolicy`, the same arithmetic around a policy, which
-:func:`~pour_gym.agents.rollout.sb3_policy` puts in place when the run's config has the key.
+:func:`~pour_gym.agents.policies.rollout.sb3_policy` puts in place when the run's config
+has the key.
 """
 
 from __future__ import annotations
@@ -23,7 +25,7 @@ from dataclasses import asdict, dataclass, field
 import gymnasium as gym
 import numpy as np
 
-from pour_gym.agents.scripted import ScriptedPourPolicy, tilt_settings
+from pour_gym.agents.policies.scripted import ScriptedPourPolicy, tilt_settings
 from pour_gym.errors import InputError
 
 PHASES = ("move", "tilt", "back")  # the expert's phases, appended one-hot
@@ -159,7 +161,7 @@ class ResidualPolicy:
         learner: the learner as a policy of the augmented observation (its ``reset``,
             with or without a seed, is passed on).
         config: the residual's scale and expert.
-        tilt: the env's tilt settings (:func:`~pour_gym.agents.scripted.tilt_settings`).
+        tilt: the env's tilt settings (:func:`~pour_gym.agents.policies.scripted.tilt_settings`).
     """
 
     def __init__(

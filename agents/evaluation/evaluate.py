@@ -1,7 +1,7 @@
 """Evaluating a policy on every container: success rate, amount error and spill per object.
 
 A policy is anything that maps an observation to an action (see
-:mod:`pour_gym.agents.rollout`): an SB3 model, the scripted policy, or a parameterised
+:mod:`pour_gym.agents.policies.rollout`): an SB3 model, the scripted policy, or a parameterised
 policy from policy search. Objects the policy never trained on are marked, which is the
 generalisation the thesis argues for. For the pouring tasks the rows are (source, target) pairs:
 each object as both (the default), or every source with every target (a matrix).
@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from tqdm import tqdm
 
-from pour_gym.agents.rollout import rollout
+from pour_gym.agents.policies.rollout import rollout
 from pour_gym.envs import make, mean_metrics, task_of
 from pour_gym.report.tables import markdown_table
 
@@ -57,14 +57,14 @@ def load_policy(
         InputError: an unknown policy, a scripted policy for an env that does not pour, or
             a model asked to act in another env than it was trained on.
     """
-    from pour_gym.agents.rollout import sb3_policy
+    from pour_gym.agents.policies.rollout import sb3_policy
     from pour_gym.envs import POUR_V0
     from pour_gym.errors import InputError
 
     if actions not in (None, "mean", "sampled"):
         raise InputError(f"actions are 'mean' or 'sampled', not {actions!r}")
     if name == "random":
-        from pour_gym.agents.rollout import RandomPolicy
+        from pour_gym.agents.policies.rollout import RandomPolicy
 
         if actions is not None:
             raise InputError("--actions is for a trained model; the random policy has none")
@@ -76,8 +76,8 @@ def load_policy(
     if name == "scripted" or name.endswith(".json"):
         if actions is not None:
             raise InputError("--actions is for a trained model; the scripted policy has no noise")
-        from pour_gym.agents.scripted import ScriptedPourPolicy, tilt_settings
-        from pour_gym.agents.search import load_search
+        from pour_gym.agents.policies.scripted import ScriptedPourPolicy, tilt_settings
+        from pour_gym.agents.policies.search import load_search
 
         env_id = env_id or POUR_V0
         try:
@@ -96,7 +96,7 @@ def load_policy(
             ScriptedPourPolicy(**found["best"], **tilt), env_id,
             trained_on=list(found.get("sources", [])),
         )  # fmt: skip
-    from pour_gym.agents.training import load_run
+    from pour_gym.agents.training.runs import load_run
 
     run = load_run(name, algo)
     env_id = env_id or run.config.get("env") or POUR_V0
