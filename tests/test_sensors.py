@@ -194,6 +194,7 @@ def test_report_sensors_draws_a_sheet_with_fluid_in_view(tmp_path):
     assert len(wet) > 20 and np.linalg.norm(wet, axis=1).max() < 0.2
     assert main(["report", "sensors", "--out", str(tmp_path)]) == 0
     assert sorted(p.name for p in tmp_path.glob("*.png")) == [
+        "pandapour-v0.png",
         "particledrop-v0.png",
         "pour-v0.png",
         "tiltpour-v0.png",
