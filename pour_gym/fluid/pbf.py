@@ -239,6 +239,26 @@ class PBFluid:
         self._scorr = cfg.scorr_k / rest_sum
         self._w_dq = float(_poly6((cfg.scorr_dq * self.h) ** 2, self.h))
         self._wall_table = wall_density_table(self.h, self._vol)
+        # The kernel's constants: all fixed by the config and the construction.
+        self._constants = FluidConstants(
+            h_max=float(cfg.substep),
+            limit=float(cfg.max_travel * cfg.radius),
+            gz=float(GRAVITY[2]),
+            floor=-np.inf if self.floor is None else float(self.floor),
+            floor_decay=float(cfg.floor_friction),
+            h=float(self.h),
+            vol=float(self._vol),
+            eps=float(self._eps),
+            scorr=float(self._scorr),
+            w_dq=float(self._w_dq),
+            iterations=int(cfg.iterations),
+            tension=float(cfg.tension),
+            omega=float(cfg.over_relaxation),
+            wall_on=bool(cfg.wall_density),
+            wall_table=self._wall_table,
+            radius=float(cfg.radius),
+            xsph=float(cfg.xsph),
+        )
         self.time = 0.0
         self.corrections = 0
 
@@ -380,7 +400,6 @@ class PBFluid:
 
         The colliders' previous poses are set where they have none yet.
         """
-        cfg = self.config
         for c in self.colliders:
             if c.prev_rotation is None:
                 c.prev_rotation, c.prev_translation = c.rotation.copy(), c.translation.copy()
@@ -402,25 +421,7 @@ class PBFluid:
         wall_speed = max((collider_travel(c, c.sdf) for c in self.colliders), default=0.0) / dt
         return KernelArguments(
             particles=ParticleState(x=self.x, v=self.v, dt=float(dt)),
-            constants=FluidConstants(
-                h_max=float(cfg.substep),
-                limit=float(cfg.max_travel * cfg.radius),
-                gz=float(GRAVITY[2]),
-                floor=-np.inf if self.floor is None else float(self.floor),
-                floor_decay=float(cfg.floor_friction),
-                h=float(self.h),
-                vol=float(self._vol),
-                eps=float(self._eps),
-                scorr=float(self._scorr),
-                w_dq=float(self._w_dq),
-                iterations=int(cfg.iterations),
-                tension=float(cfg.tension),
-                omega=float(cfg.over_relaxation),
-                wall_on=bool(cfg.wall_density),
-                wall_table=self._wall_table,
-                radius=float(cfg.radius),
-                xsph=float(cfg.xsph),
-            ),
+            constants=self._constants,
             colliders=ColliderMotion(
                 fvals=fvals,
                 fint=fint,
