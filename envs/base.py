@@ -31,6 +31,7 @@ from pour_gym.fluid.pbf import PBFConfig, default_threads
 from pour_gym.fluid.sdf import SignedDistanceField
 from pour_gym.perception import PERCEPTIONS, perceived_asset
 from pour_gym.sim import Camera, Container, World
+from pour_gym.sim.raster import DRAWN_RADIUS
 from pour_gym.sim.sensors import SEGMENTS, Body, Sensor, SensorConfig
 from pour_gym.sim.world import CUP_COLORS, FLUIDS, TABLE_COLOR, container_field
 
@@ -119,6 +120,7 @@ class PourGymEnv(gym.Env, EzPickle):
         self._started = False
         self.sensor_config = SensorConfig.of(sensor_config)
         self._sensor: Sensor | None = None
+        self._renderer: tuple[Camera, Sensor] | None = None  # render()'s, at ``camera``
         self._sensor_rng: np.random.Generator | None = None
         self.obs_modes: tuple[str, ...] = ()
         self.obs_spaces: dict[str, spaces.Box] = {}
@@ -352,10 +354,19 @@ class PourGymEnv(gym.Env, EzPickle):
     def capture(self, rgb: bool = False):
         """What the head camera sees now (a :class:`~pour_gym.sim.sensors.Frame`)."""
         self._show_scene()
-        world = self.world
+        radius = self.sensor_config.splat * self.world.config.spacing
+        return self._picture(self.sensor, radius, rgb)
+
+    def scene(self, sensor: Sensor) -> list[Body]:
+        """Every body in the world as ``sensor`` draws it, at its current pose.
+
+        The placed containers, then what the env adds (the pouring env's holder: the
+        Panda's links). The one list that the sensors and :meth:`render` both draw, so a
+        picture shows what an observation sees.
+        """
         bodies = [
             Body(
-                *self._drawn_mesh(role),
+                *self._drawn_mesh(role, sensor),
                 rotation=c.rotation,
                 translation=c.translation,
                 segment=self.role_segments[role],
@@ -363,19 +374,23 @@ class PourGymEnv(gym.Env, EzPickle):
             )
             for role, c in self._placed.items()
         ]
-        bodies += self._more_drawables()
-        radius = self.sensor_config.splat * world.config.spacing
+        return bodies + self._more_drawables(sensor)
+
+    def _picture(self, sensor: Sensor, radius: float, rgb: bool):
+        """``sensor``'s frame of :meth:`scene`, the table and the fluid drawn at ``radius`` m."""
+        world = self.world
         table = TABLE_COLOR[:3] if world.table else None
-        return self.sensor.capture(
-            bodies, world.particles, radius, table, self._sensor_rng, rgb=rgb
+        return sensor.capture(
+            self.scene(sensor), world.particles, radius, table, self._sensor_rng, rgb=rgb
         )
 
-    def _drawn_mesh(self, role: str) -> tuple[np.ndarray, np.ndarray]:
-        """The mesh of a role's container as the sensor draws it (made once)."""
+    def _drawn_mesh(self, role: str, sensor: Sensor) -> tuple[np.ndarray, np.ndarray]:
+        """The mesh of a role's container as ``sensor`` draws it (made once per detail)."""
         name = self._names[role]
-        return self._store.get(name, "drawn", lambda: self.sensor.mesh(self.asset(name).mesh))
+        kind = f"drawn {sensor.cell:.4g}"  # the head camera's and the pictures' differ
+        return self._store.get(name, kind, lambda: sensor.mesh(self.asset(name).mesh))
 
-    def _more_drawables(self) -> list[Body]:
+    def _more_drawables(self, sensor: Sensor) -> list[Body]:
         """What the sensors draw besides the containers (the pouring env: its holder)."""
         return []
 
@@ -394,15 +409,29 @@ class PourGymEnv(gym.Env, EzPickle):
 
     # ------------------------------------------------------------------ pictures
     def render(self) -> np.ndarray | None:
-        """An RGB frame (``rgb_array``), or the frame shown in a window (``human``)."""
+        """An RGB frame (``rgb_array``), or the frame shown in a window (``human``).
+
+        Drawn from :meth:`scene`, as the sensors draw their frames, from ``camera`` at its
+        image size: what a picture shows is what the sensors see (an arm included).
+        """
         if self.render_mode is None:
             gym.logger.warn("render() called without a render_mode; pass render_mode=...")
             return None
-        frame = self.world.render(self.camera)
+        self._show_scene()
+        sensor = self._render_sensor()
+        frame = self._picture(sensor, DRAWN_RADIUS * self.world.config.spacing, rgb=True).rgb
         if self.render_mode == "human":
             self._show(frame)
             return None
         return frame
+
+    def _render_sensor(self) -> Sensor:
+        """A noiseless sensor at ``camera`` and its image size (made again if it moves)."""
+        if self._renderer is None or self._renderer[0] != self.camera:
+            cam = self.camera
+            config = SensorConfig(width=cam.width, height=cam.height, fov=cam.fov)
+            self._renderer = (cam, Sensor(cam, config))
+        return self._renderer[1]
 
     def _show(self, frame: np.ndarray) -> None:
         import matplotlib.pyplot as plt

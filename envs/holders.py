@@ -18,7 +18,6 @@ read from it afterwards.
 from __future__ import annotations
 
 import inspect
-from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, ClassVar
 
@@ -36,7 +35,7 @@ from pour_gym.sim.panda import (
     grasp,
 )
 from pour_gym.sim.rotations import about_z
-from pour_gym.sim.sensors import SEGMENTS, Body
+from pour_gym.sim.sensors import SEGMENTS, Body, Sensor
 
 if TYPE_CHECKING:
     from pour_gym.features import ContainerGeometry
@@ -177,12 +176,12 @@ class Holder:
         """Where pictures are taken from at this episode (None: the task's camera)."""
         return None
 
-    def drawables(self, drawn_mesh: Callable) -> list[Body]:
-        """The holder's body as the sensors draw it, at its current pose (none: nothing).
+    def drawables(self, sensor: Sensor) -> list[Body]:
+        """The holder's body as ``sensor`` draws it, at its current pose (none: nothing).
 
         Args:
-            drawn_mesh: the sensor's mesh simplification (a trimesh mesh to its
-                ``(vertices, faces)``, :meth:`pour_gym.sim.sensors.Sensor.mesh`).
+            sensor: the camera drawing it (its :meth:`~pour_gym.sim.sensors.Sensor.mesh`
+                simplifies a mesh to about a pixel).
         """
         return []
 
@@ -317,7 +316,8 @@ class PandaHolder(Holder):
         self._grasps: dict[str, Grasp] = {}
         self._held: Grasp | None = None  # the episode's grasp: the container's, or turned
         self._scene: HeldScene | None = None  # the episode's world and containers
-        self._drawn: tuple | None = None  # (the arm, its links as the sensor draws them)
+        # The arm's links as each camera draws them, by the camera's detail (m a pixel).
+        self._drawn: dict[float, list] = {}
         self._q = np.zeros(len(ARM_JOINTS))  # the joints the arm was last set to, rad
         self._qd = np.zeros(len(ARM_JOINTS))
         self._clipped = np.zeros(len(ARM_JOINTS), dtype=bool)
@@ -485,15 +485,19 @@ class PandaHolder(Holder):
             "clipped_joints": int(np.count_nonzero(self._clipped)),
         }
 
-    def drawables(self, drawn_mesh: Callable) -> list[Body]:
-        """The arm's links (and fingers) at their current poses, as the sensors draw them."""
+    def drawables(self, sensor: Sensor) -> list[Body]:
+        """The arm's links (and fingers) at their current poses, as ``sensor`` draws them."""
         panda = self.panda()
-        if self._drawn is None or self._drawn[0] is not panda:
+        # Every Panda has the same links; the head camera's and the pictures' detail differ.
+        key = sensor.cell
+        shapes = self._drawn.get(key)
+        if shapes is None:
             shapes = [
-                (link, *drawn_mesh(mesh), local) for link, mesh, local in panda.visual_meshes()
+                (link, *sensor.mesh(mesh), local) for link, mesh, local in panda.visual_meshes()
             ]
-            self._drawn = (panda, shapes)
-        shapes = self._drawn[1]
+            if len(self._drawn) >= 4:  # the picture camera moved: drop the oldest
+                self._drawn.pop(next(iter(self._drawn)))
+            self._drawn[key] = shapes
         frames = panda.link_frames({link for link, *_ in shapes})
         bodies = []
         for link, vertices, faces, local in shapes:

@@ -27,7 +27,7 @@ from pour_gym.envs.task import POUR
 from pour_gym.fluid.pbf import PBFConfig
 from pour_gym.sim import Camera, Container
 from pour_gym.sim.rotations import about_z
-from pour_gym.sim.sensors import SensorConfig
+from pour_gym.sim.sensors import Sensor, SensorConfig
 
 RESTING_SPEED = 0.05  # m/s: a particle in no container moving slower has spilled
 # The fill left over when the fill is sized to the task, particles.
@@ -519,9 +519,9 @@ class PourEnv(PourGymEnv):
             c["poured"] + c["in_flight"] >= self.target_amount - self.tolerance,
         )  # fmt: skip
 
-    def _more_drawables(self) -> list:
-        """The holder's body (the arm's links), drawn by the sensors with the containers."""
-        return self.holder.drawables(self.sensor.mesh)
+    def _more_drawables(self, sensor: Sensor) -> list:
+        """The holder's body (the arm's links), drawn with the containers."""
+        return self.holder.drawables(sensor)
 
     def _sensor_frame_pose(self) -> tuple[np.ndarray, np.ndarray]:
         """The source's lip frame: its rotation, with the lip as origin."""

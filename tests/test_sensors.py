@@ -231,3 +231,27 @@ def test_the_head_camera_sees_the_arm_where_pybullet_draws_it():
     env.close()
     assert arm.sum() > 0.05 * arm.size  # the arm is in view
     assert (arm & drawn).sum() / (arm | drawn).sum() > 0.9
+
+
+def test_render_draws_the_scene_the_sensors_see():
+    """One scene: ``render()`` draws the list the sensors draw (the containers, the arm,
+    the table, the fluid). Moved to the head camera at the sensor's image size, the
+    picture is the rgb observation, pixel for pixel; at its own camera it shows the arm."""
+    env = gym.make(
+        "PourGym/PandaPour-v0", objects="red_cup", obs_mode="rgb", num_threads=1,
+        render_mode="rgb_array", sensor_config={"width": 96, "height": 72},
+    )  # fmt: skip
+    env.reset(seed=3)
+    for _ in range(3):
+        obs, *_ = env.step(env.action_space.sample())
+    u = env.unwrapped
+    picture = env.render()
+    assert picture.shape == (u.camera.height, u.camera.width, 3)
+    from pour_gym.sim.sensors import SEGMENTS
+
+    segments = [body.segment for body in u.scene(u.sensor)]
+    assert segments[:2] == [SEGMENTS["source"], SEGMENTS["target"]]
+    assert segments.count(SEGMENTS["arm"]) >= 8  # the links and fingers
+    u.camera = u.sensor.camera
+    assert np.array_equal(env.render(), obs)
+    env.close()
