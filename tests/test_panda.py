@@ -230,3 +230,39 @@ def test_a_grasp_the_arm_takes_is_kept_as_it_is():
     own = grasp(env.unwrapped.source.asset)
     env.close()
     assert np.array_equal(held.rotation, own.rotation)
+
+
+def test_the_arm_tilts_on_with_a_joint_at_its_limit():
+    """Held by its handle over the target, the pybullet mug's forearm joint reaches its
+    limit at about 80 deg of tilt. Pybullet's solver, from there, gave joints that the
+    limit clipped back: the arm stopped at 81 deg for good and a low fill (207 particles,
+    107 to pour) never poured. Solving with the joint held at its limit and the six others
+    free (``Panda.solve_held``) tilts it on: the scripted policy pours the amount."""
+    env = gym.make(PANDA_POUR_V0, objects="pybullet_mug", num_threads=1)
+    episode = rollout(env, ScriptedPourPolicy(), seed=1098, keep_infos=True)
+    env.close()
+    info = episode.info
+    tilts = [i["tilt_deg"] for i in episode.infos]
+    assert max(tilts) > 84.0, max(tilts)
+    assert info["is_success"], (info["poured"], info["target_amount"], max(tilts))
+
+
+def test_the_held_solve_moves_only_the_free_joints_and_nears_the_pose():
+    """``solve_held`` keeps a joint at its limit where it is and brings the grasp frame
+    nearer a pose than it was."""
+    env = make(objects=["red_cup"])
+    env.reset(seed=0)
+    panda = env.unwrapped.holder.panda()
+    q = panda.joints.copy()
+    q[4] = panda.upper[4]
+    panda.set_joints(q)
+    position, rotation = panda.hand_pose()
+    goal = position + np.array([0.0, 0.02, -0.02])
+    held = panda.solve_held(goal, rotation)
+    before = panda.pose_error(q, goal, rotation)
+    after = panda.pose_error(held, goal, rotation)
+    left = panda.joints
+    env.close()
+    assert held[4] == panda.upper[4]
+    assert np.array_equal(left, q)  # the joints are left where they were
+    assert after < 0.1 * before, (before, after)

@@ -25,6 +25,7 @@ import pybullet_data
 from pour_gym.assets import LabelledAsset
 from pour_gym.fluid.colliders import quaternion
 from pour_gym.parts import Part
+from pour_gym.sim.rotations import as_rotvec
 
 URDF = "franka_panda/panda.urdf"
 ARM_JOINTS = tuple(range(7))
@@ -69,6 +70,10 @@ IK_ITERATIONS = 100
 IK_RESIDUAL = 1e-5
 # Iterations of the local solve in :meth:`Panda.follow` (a step's worth of motion).
 LOCAL_ITERATIONS = 10
+# Iterations, damping (m) and finite-difference step (rad) of :meth:`Panda.solve_held`.
+HELD_ITERATIONS = 30
+HELD_DAMPING = 0.02
+HELD_DIFFERENCE = 1e-5
 # A step whose pose error is below this (m, plus 0.1 m per rad) is taken as it is.
 ON_POSE = 1e-4
 # How far from the commanded orientation a step of :meth:`Panda.follow` may leave the
@@ -318,9 +323,10 @@ class Panda:
 
         The step the joints' limits and velocities allow (:meth:`limit`) towards the
         solver's solution (:meth:`solve`) is taken if it lands on the pose (within
-        ``ON_POSE``: the usual case). Otherwise two goals: that solution and a local one (a
+        ``ON_POSE``: the usual case). Otherwise three goals: that solution, a local one (a
         few iterations from the current joints, which stays on the arm's current branch of
-        solutions when the first lies on another, far in joint space); towards each, the
+        solutions when the first lies on another, far in joint space) and one that moves
+        only the joints not at a limit (:meth:`solve_held`); towards each, the
         allowed step and half and a quarter of it; of these the one nearest the pose
         (metres plus 0.1 m per rad) is taken if it is nearer than staying and leaves the
         container no further from the commanded orientation than it is (or than
@@ -336,22 +342,59 @@ class Panda:
         q1, clipped = self.limit(solution, dt)
         if self.pose_error(q1, position, rotation) < ON_POSE:
             return q1, clipped
-        metres, radians = self.pose_errors(q0, position, rotation)
-        best, best_error = q0, metres + ORIENTATION_SCALE * radians
+        metres, turned = self.pose_errors(q0, position, rotation)
+        best, best_error = q0, metres + ORIENTATION_SCALE * turned
         # No step may turn the container further from the commanded orientation than it
         # is (or than TURN_SLACK): nearing the lip's position by tilting the cup would pour
         # it, a little at every step.
-        most_turn = max(radians, TURN_SLACK)
+        most_turn = max(turned, TURN_SLACK)
         local = self.solve(position, rotation, passes=1, iterations=LOCAL_ITERATIONS)
-        for goal in (solution, local):
+        # The held solve is for an orientation the limit keeps the arm from: it may not
+        # leave the container any further from the commanded orientation than it is (it
+        # would otherwise near an unreachable position by tipping the cup, TURN_SLACK at
+        # every step).
+        held = self.solve_held(position, rotation)
+        for goal, turn in ((solution, most_turn), (local, most_turn), (held, turned)):
             step, _ = self.limit(goal, dt)
             for fraction in (1.0, 0.5, 0.25):
                 q = q0 + fraction * (step - q0)
                 metres, radians = self.pose_errors(q, position, rotation)
                 error = metres + ORIENTATION_SCALE * radians
-                if radians <= most_turn and error < best_error - 1e-9:
+                if radians <= turn and error < best_error - 1e-9:
                     best, best_error = q, error
         return best, clipped | ~np.isclose(best, q1, rtol=0.0, atol=1e-9)
+
+    def solve_held(self, position: np.ndarray, rotation: np.ndarray) -> np.ndarray:
+        """Joints nearer a pose, moving only the joints that are not at a limit.
+
+        Damped least squares on the grasp frame's position and orientation errors, with a
+        finite-difference Jacobian of the free joints; a joint that reaches its limit is
+        held there too. Pybullet's solver, from joints at a limit, can return solutions
+        that the limit clips back to where they were: the pybullet mug's cup, held by its
+        handle with the forearm joint at its limit, stopped tilting at 81 deg for good,
+        short of the tilt its pour needed, though the other six joints could tilt it
+        further. The joints are left where they were.
+        """
+        start = self.joints
+        q = start.copy()
+        held = self.at_limit(q)
+        for _ in range(HELD_ITERATIONS):
+            self.set_joints(q)
+            p, r = self.hand_pose()
+            error = np.concatenate([position - p, as_rotvec(rotation @ r.T)])
+            jacobian = np.zeros((6, len(ARM_JOINTS)))
+            for j in np.flatnonzero(~held):
+                moved = q.copy()
+                moved[j] += HELD_DIFFERENCE
+                self.set_joints(moved)
+                pj, rj = self.hand_pose()
+                jacobian[:3, j] = (pj - p) / HELD_DIFFERENCE
+                jacobian[3:, j] = as_rotvec(rj @ r.T) / HELD_DIFFERENCE
+            normal = jacobian @ jacobian.T + HELD_DAMPING**2 * np.eye(6)
+            q = np.clip(q + jacobian.T @ np.linalg.solve(normal, error), self.lower, self.upper)
+            held |= (q <= self.lower) | (q >= self.upper)
+        self.set_joints(start)
+        return q
 
     def limit(self, goal: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
         """The joints a step of ``dt`` s reaches towards ``goal``, and which joints clipped.

@@ -46,6 +46,20 @@ def from_rotvec(rotvec: np.ndarray) -> np.ndarray:
     return quaternion_matrix(scale * x, scale * y, scale * z, math.cos(angle / 2))
 
 
+def as_rotvec(rotation: np.ndarray) -> np.ndarray:
+    """A (3, 3) rotation's rotation vector (axis times angle, rad): ``from_rotvec``'s inverse."""
+    r = np.asarray(rotation, dtype=np.float64)
+    angle = math.acos(min(1.0, max(-1.0, (float(np.trace(r)) - 1.0) / 2.0)))
+    skew = np.array([r[2, 1] - r[1, 2], r[0, 2] - r[2, 0], r[1, 0] - r[0, 1]])
+    if angle < 1e-6:
+        return 0.5 * skew  # sin(angle) ~ angle
+    if angle > math.pi - 1e-6:  # half a turn: the skew part vanishes; SciPy's way
+        from scipy.spatial.transform import Rotation
+
+        return Rotation.from_matrix(r).as_rotvec()
+    return angle / (2.0 * math.sin(angle)) * skew
+
+
 def as_quaternion(rotation: np.ndarray) -> list[float]:
     """A (3, 3) rotation matrix as pybullet's (x, y, z, w) quaternion (SciPy's ``from_matrix``).
 
