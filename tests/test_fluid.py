@@ -305,3 +305,21 @@ def test_the_kernels_named_arguments_are_its_parameters_in_order():
     args = fluid.kernel_arguments(0.01)
     assert len(args.flat()) == len(build.parameters()) == 54
     assert args.particles.x is fluid.x
+
+
+@pytest.mark.parametrize("omega, gamma", [(2.9, 0.47), (0.0, 1.3), (6.0, 0.1)])
+def test_the_damped_wave_fit_recovers_frequency_and_decay(omega, gamma):
+    """``fit_damped_wave`` (the shear-wave measurement's fit) recovers the frequency and the
+    decay of ``exp(-gamma t) cos(omega t)`` sampled as the measurement samples it, with
+    noise of 2 % of the start: an oscillating (elastic) and a purely decaying (viscous)
+    mode alike."""
+    from pour_gym.fluid.validation import fit_damped_wave
+
+    t = np.arange(61) * 0.05
+    a = np.exp(-gamma * t) * np.cos(omega * t)
+    a[1:] += np.random.default_rng(0).normal(0.0, 0.02, len(t) - 1)
+    found_omega, found_gamma = fit_damped_wave(t, a)
+    assert found_omega == pytest.approx(omega, abs=0.1)
+    assert found_gamma == pytest.approx(gamma, abs=0.05)
+    with pytest.raises(ValueError, match="at least 4"):
+        fit_damped_wave(t[:3], a[:3])

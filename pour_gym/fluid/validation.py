@@ -10,7 +10,10 @@ at any fluid parameters:
 - :func:`pour_onset`: a cup filled to h and tilted slowly pours at ``tan(theta) =
   (H - h) / R`` (within 3 degrees).
 
-``pour-gym bench accuracy`` prints both; ``tests/test_fluid.py`` asserts them.
+``pour-gym bench accuracy`` prints both; ``tests/test_fluid.py`` asserts them. It also
+prints :func:`shear_wave`, a measurement with no limit yet: a transverse shear wave in a
+long tray, which a liquid damps (at ``nu k^2``) and an elastic solid carries (at its shear
+wave speed); fitted by :func:`fit_damped_wave`.
 """
 
 from __future__ import annotations
@@ -26,6 +29,9 @@ from pour_gym.objects import cylinder_cup
 
 R_IN, WALL, BASE = 0.036, 0.004, 0.006  # m: the cylinder's inner radius, wall and base
 ONSET_HEIGHT = 0.1  # m: the cup the onset is measured in
+# The shear-wave tray (m): inner width along x (half the wave's length), length along y,
+# walls, base, and the fluid's depth in it.
+TRAY_WIDTH, TRAY_LENGTH, TRAY_WALL, TRAY_BASE, TRAY_DEPTH = 0.12, 0.48, 0.005, 0.006, 0.02
 COLUMN_HEIGHT = 0.13  # m: a cup deep enough for a column of 8.6 cm with room to spare
 
 
@@ -67,6 +73,128 @@ class Onset:
     expected_deg: float
     measured_deg: float
     error_deg: float
+
+
+@dataclass(frozen=True)
+class ShearWave:
+    """A transverse shear wave's amplitude over time, and the damped wave fitted to it.
+
+    Attributes:
+        wavelength: twice the tray's width, m (the wave number k is 2 pi over it).
+        amplitude: the initial speed of the wave, m/s.
+        times: (T,) s after the start.
+        amplitudes: (T,) the velocity field's share along the wave, relative to its start.
+        frequency: the fitted angular frequency omega, rad/s (0: it only decays).
+        decay: the fitted decay rate gamma of the amplitude, 1/s.
+        wave_speed: ``omega / k``, m/s: the speed of a shear wave; a liquid has none.
+        viscosity: ``2 gamma / k^2``, m^2/s: the kinematic viscosity a damped shear wave
+            of this decay means (a liquid's shear mode decays at ``nu k^2`` alone).
+    """
+
+    wavelength: float
+    amplitude: float
+    times: np.ndarray
+    amplitudes: np.ndarray
+    frequency: float
+    decay: float
+    wave_speed: float
+    viscosity: float
+
+
+def fit_damped_wave(times: np.ndarray, amplitudes: np.ndarray) -> tuple[float, float]:
+    """``(omega, gamma)`` of ``exp(-gamma t) cos(omega t)`` fitted to a wave's amplitude.
+
+    Least squares from a start at the first zero crossing's quarter period (or, with none,
+    at a pure decay through the last amplitude).
+
+    Raises:
+        ValueError: fewer than 4 samples, or a start that is not 1.
+    """
+    from scipy.optimize import curve_fit
+
+    t, a = np.asarray(times, dtype=np.float64), np.asarray(amplitudes, dtype=np.float64)
+    if len(t) < 4 or abs(a[0] - 1.0) > 1e-9:
+        raise ValueError("give at least 4 amplitudes over time, relative to the first (1)")
+    crossed = np.flatnonzero(a <= 0.0)
+    if len(crossed):
+        omega0, gamma0 = np.pi / (2.0 * t[crossed[0]]), 0.5 / t[-1]
+    else:
+        omega0, gamma0 = 0.0, -np.log(max(a[-1], 1e-3)) / t[-1]
+
+    def wave(tt, omega, gamma):
+        return np.exp(-gamma * tt) * np.cos(omega * tt)
+
+    (omega, gamma), _ = curve_fit(wave, t, a, p0=(omega0, gamma0), bounds=([0, 0], [np.inf] * 2))
+    return float(omega), float(gamma)
+
+
+def tray_field(cache_dir=None) -> SignedDistanceField:
+    """The shear-wave tray's signed-distance field (1 mm grid): an open box, 10 cm deep."""
+    import trimesh
+
+    w, length, wall, base, height = TRAY_WIDTH, TRAY_LENGTH, TRAY_WALL, TRAY_BASE, 0.1
+    outer = trimesh.creation.box([w + 2 * wall, length + 2 * wall, height])
+    outer.apply_translation([0.0, 0.0, height / 2])
+    inner = trimesh.creation.box([w, length, height])
+    inner.apply_translation([0.0, 0.0, height / 2 + base])
+    tray = trimesh.boolean.difference([outer, inner], engine="manifold")
+    return build_sdf(tray, spacing=0.001, cache_dir=cache_dir)
+
+
+def shear_wave(
+    amplitude: float = 0.01,
+    duration: float = 3.0,
+    config: PBFConfig | None = None,
+    num_threads: int | None = None,
+    field: SignedDistanceField | None = None,
+) -> ShearWave:
+    """A shear wave across the tray: ``v_y = A cos(pi x / W)``, watched for ``duration`` s.
+
+    The fluid (:data:`TRAY_DEPTH` deep, on a base without friction) settles for 1 s; then
+    every particle gets ``v_y = amplitude cos(pi (x + W/2) / W)``, a shear mode that the
+    tray's walls at ``x = +-W/2`` let slide (the fluid's walls do not hold it back). Each
+    0.05 s the velocity field of the middle half of the tray's length (away from the ends,
+    where the flow turns) is projected on the mode. A Newtonian liquid's amplitude decays
+    as ``exp(-nu k^2 t)`` with ``k = pi / W``; an elastic body's oscillates.
+
+    Args:
+        amplitude: the wave's speed, m/s (small, so that the flow stays laminar).
+        duration: how long it is watched, s.
+        config: the fluid's parameters (the table's friction is taken off).
+        num_threads: the fluid's threads.
+        field: :func:`tray_field`, computed if not given.
+    """
+    cfg = config or PBFConfig()
+    cfg = PBFConfig(**{**cfg.to_dict(), "floor_friction": 0.0})
+    field = field if field is not None else tray_field()
+    s, w = cfg.spacing, TRAY_WIDTH
+    gx = np.arange(-w / 2 + s / 2, w / 2, s)
+    gy = np.arange(-TRAY_LENGTH / 2 + s / 2, TRAY_LENGTH / 2, s)
+    gz = np.arange(TRAY_BASE + s / 2, TRAY_BASE + TRAY_DEPTH, s)
+    fluid = PBFluid(np.stack(np.meshgrid(gx, gy, gz, indexing="ij"), -1).reshape(-1, 3), cfg,
+                    floor=None, num_threads=num_threads)  # fmt: skip
+    fluid.add_collider(field)
+    for _ in range(10):
+        fluid.step(0.1)
+
+    def mode(x: np.ndarray) -> np.ndarray:
+        return np.cos(np.pi * (x + w / 2) / w)
+
+    fluid.v[:] = 0.0
+    fluid.v[:, 1] = amplitude * mode(fluid.x[:, 0])
+    dt, times, amplitudes = 0.05, [], []
+    for k in range(round(duration / dt) + 1):
+        middle = np.abs(fluid.x[:, 1]) < TRAY_LENGTH / 4
+        m = mode(fluid.x[middle, 0])
+        amplitudes.append(float((fluid.v[middle, 1] * m).sum() / (m * m).sum()) / amplitude)
+        times.append(k * dt)
+        if k * dt < duration - 1e-9:
+            fluid.step(dt)
+    t, a = np.array(times), np.array(amplitudes)
+    a = a / a[0]
+    omega, gamma = fit_damped_wave(t, a)
+    k = np.pi / w
+    return ShearWave(2 * w, amplitude, t, a, omega, gamma, omega / k, 2.0 * gamma / k**2)
 
 
 def cylinder_field(height: float, cache_dir=None) -> SignedDistanceField:

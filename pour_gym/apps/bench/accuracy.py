@@ -1,4 +1,7 @@
-"""The fluid's accuracy: settled columns and pour onsets (:mod:`pour_gym.fluid.validation`)."""
+"""The fluid's accuracy: settled columns, pour onsets and a shear wave.
+
+See :mod:`pour_gym.fluid.validation`.
+"""
 
 from __future__ import annotations
 
@@ -14,11 +17,16 @@ FILLS = (0.6, 0.7, 0.8)
 
 
 def bench_accuracy(heights: tuple[float, ...] = COLUMNS, fills: tuple[float, ...] = FILLS) -> dict:
-    """Settle columns of the given heights and tilt cups filled to the given fractions.
+    """Settle columns, tilt filled cups, and watch a shear wave in a tray.
+
+    Args:
+        heights: the columns' heights, m.
+        fills: the cups' fills, fractions of their depth.
 
     Returns:
-        ``{"columns": [Column as dict, ...], "onsets": [Onset as dict, ...]}`` (see
-        :class:`pour_gym.fluid.validation.Column` and ``Onset``).
+        ``{"columns": [Column as dict, ...], "onsets": [Onset as dict, ...], "shear":
+        ShearWave as dict}`` (see :class:`pour_gym.fluid.validation.Column`, ``Onset`` and
+        ``ShearWave``; the wave's time series as lists).
     """
     from pour_gym.fluid.validation import (
         COLUMN_HEIGHT,
@@ -26,9 +34,10 @@ def bench_accuracy(heights: tuple[float, ...] = COLUMNS, fills: tuple[float, ...
         cylinder_field,
         pour_onset,
         settled_column,
+        shear_wave,
     )
 
-    bar = tqdm(total=len(heights) + len(fills), desc="bench accuracy", file=sys.stderr)
+    bar = tqdm(total=len(heights) + len(fills) + 1, desc="bench accuracy", file=sys.stderr)
     tall, cup = cylinder_field(COLUMN_HEIGHT), cylinder_field(ONSET_HEIGHT)
     columns, onsets = [], []
     for height in heights:
@@ -37,8 +46,10 @@ def bench_accuracy(heights: tuple[float, ...] = COLUMNS, fills: tuple[float, ...
     for fill in fills:
         onsets.append(asdict(pour_onset(fill, field=cup)))
         bar.update()
+    wave = {k: v.tolist() if hasattr(v, "tolist") else v for k, v in asdict(shear_wave()).items()}
+    bar.update()
     bar.close()
-    return {"columns": columns, "onsets": onsets}
+    return {"columns": columns, "onsets": onsets, "shear": wave}
 
 
 def _percent(x: float) -> str:
@@ -59,4 +70,14 @@ def accuracy_table(result: dict) -> str:
         [[f"{o['fill']:.1f}", f"{o['expected_deg']:.1f}", f"{o['measured_deg']:.1f}",
           f"{o['error_deg']:+.2f}"] for o in result["onsets"]],
     )  # fmt: skip
-    return columns + "\n\n" + onsets
+    tables = columns + "\n\n" + onsets
+    wave = result.get("shear")
+    if wave:
+        tables += "\n\n" + markdown_table(
+            ["shear wave: length, cm", "speed, m/s", "frequency, rad/s", "decay, 1/s",
+             "shear wave speed, m/s (a liquid: 0)", "viscosity it means, m^2/s (water 1e-6)"],
+            [[f"{wave['wavelength'] * 100:.0f}", f"{wave['amplitude']:.3f}",
+              f"{wave['frequency']:.2f}", f"{wave['decay']:.2f}", f"{wave['wave_speed']:.3f}",
+              f"{wave['viscosity']:.2e}"]],
+        )  # fmt: skip
+    return tables
