@@ -150,7 +150,7 @@ def shear_wave(
 ) -> ShearWave:
     """A shear wave across the tray: ``v_y = A cos(pi x / W)``, watched for ``duration`` s.
 
-    The fluid (:data:`TRAY_DEPTH` deep, on a base without friction) settles for 1 s; then
+    The fluid (:data:`TRAY_DEPTH` deep) settles for 1 s; then
     every particle gets ``v_y = amplitude cos(pi (x + W/2) / W)``, a shear mode that the
     tray's walls at ``x = +-W/2`` let slide (the fluid's walls do not hold it back). Each
     0.05 s the velocity field of the middle half of the tray's length (away from the ends,
@@ -160,12 +160,12 @@ def shear_wave(
     Args:
         amplitude: the wave's speed, m/s (small, so that the flow stays laminar).
         duration: how long it is watched, s.
-        config: the fluid's parameters (the table's friction is taken off).
+        config: the fluid's parameters (no table: the fluid stands on the tray's base, a
+            wall like the others, which holds no tangential motion back).
         num_threads: the fluid's threads.
         field: :func:`tray_field`, computed if not given.
     """
     cfg = config or PBFConfig()
-    cfg = PBFConfig(**{**cfg.to_dict(), "floor_friction": 0.0})
     field = field if field is not None else tray_field()
     s, w = cfg.spacing, TRAY_WIDTH
     gx = np.arange(-w / 2 + s / 2, w / 2, s)
@@ -186,12 +186,11 @@ def shear_wave(
     for k in range(round(duration / dt) + 1):
         middle = np.abs(fluid.x[:, 1]) < TRAY_LENGTH / 4
         m = mode(fluid.x[middle, 0])
-        amplitudes.append(float((fluid.v[middle, 1] * m).sum() / (m * m).sum()) / amplitude)
+        amplitudes.append(float((fluid.v[middle, 1] * m).sum() / (m * m).sum()))
         times.append(k * dt)
         if k * dt < duration - 1e-9:
             fluid.step(dt)
-    t, a = np.array(times), np.array(amplitudes)
-    a = a / a[0]
+    t, a = np.array(times), np.array(amplitudes) / amplitudes[0]
     omega, gamma = fit_damped_wave(t, a)
     k = np.pi / w
     return ShearWave(2 * w, amplitude, t, a, omega, gamma, omega / k, 2.0 * gamma / k**2)
