@@ -325,8 +325,8 @@ class Panda:
         solver's solution (:meth:`solve`) is taken if it lands on the pose (within
         ``ON_POSE``: the usual case). Otherwise three goals: that solution, a local one (a
         few iterations from the current joints, which stays on the arm's current branch of
-        solutions when the first lies on another, far in joint space) and one that moves
-        only the joints not at a limit (:meth:`solve_held`); towards each, the
+        solutions when the first lies on another, far in joint space) and, with a joint at
+        a limit, one that moves only the others (:meth:`solve_held`); towards each, the
         allowed step and half and a quarter of it; of these the one nearest the pose
         (metres plus 0.1 m per rad) is taken if it is nearer than staying and leaves the
         container no further from the commanded orientation than it is (or than
@@ -353,8 +353,10 @@ class Panda:
         # leave the container any further from the commanded orientation than it is (it
         # would otherwise near an unreachable position by tipping the cup, TURN_SLACK at
         # every step).
-        held = self.solve_held(position, rotation)
-        for goal, turn in ((solution, most_turn), (local, most_turn), (held, turned)):
+        goals = [(solution, most_turn), (local, most_turn)]
+        if self.at_limit(q0).any():
+            goals.append((self.solve_held(position, rotation), turned))
+        for goal, turn in goals:
             step, _ = self.limit(goal, dt)
             for fraction in (1.0, 0.5, 0.25):
                 q = q0 + fraction * (step - q0)
