@@ -238,12 +238,6 @@ class TiltPourEnv(PourGymEnv):
         self._world_ready = True
         return world.census().elsewhere >= 2
 
-    def render(self):
-        """The container at the episode's angle (with its fluid after a simulated label)."""
-        if self.render_mode is not None:
-            self._show_scene()
-        return super().render()
-
     def _show_scene(self) -> None:
         """The container at the episode's angle, its rest fill rotated along.
 
