@@ -19,6 +19,7 @@ from pour_gym.envs.pour_observation import (
 from pour_gym.envs.rules import (
     amount_terms,
     episode_end,
+    lip_goal,
     shaping_potentials,
     tilt_goal,
     tolerance,
@@ -33,6 +34,7 @@ RESTING_SPEED = 0.05  # m/s: a particle in no container moving slower has spille
 # The fill left over when the fill is sized to the task, particles.
 FILL_MARGIN = 100
 TILT_CONTROLS = ("rate", "angle")
+LIP_CONTROLS = ("velocity", "target")
 
 
 class PourEnv(PourGymEnv):
@@ -56,7 +58,12 @@ class PourEnv(PourGymEnv):
     below 0) at -1 to ``max_tilt`` at 1, reached at no more than ``max_tilt_rate``: the
     same motions, in a form where exploring actions reach every tilt (a learner's
     Gaussian noise on a rate seldom adds up to the 60-90 deg at which a small fill
-    pours).
+    pours). With ``lip_control="target"`` the first three actions name where the lip goes
+    instead, in the target's terms, reached at no more than ``max_speed`` along each axis:
+    along x and y the target's rim centre plus the action times 2 target rim radii
+    (``LIP_REACH``), up from the lowest allowed height (-1) to 10 cm above it (1). The
+    same motions again, in a form where one action means the same place over every
+    target (a velocity must be steered by a gain that depends on the target's size).
 
     ## Observation Space
     ``obs_mode="features"`` (default): ``Box(-10, 10, (16,), float32)``, see
@@ -133,6 +140,7 @@ class PourEnv(PourGymEnv):
     | ``max_tilt_rate`` | float | 60.0 | tilt rate at action 1, deg/s |
     | ``max_tilt`` | float | 135.0 | largest tilt, deg |
     | ``tilt_control`` | str | ``"rate"`` | the tilt action: ``"rate"`` or ``"angle"`` |
+    | ``lip_control`` | str | ``"velocity"`` | the lip action: ``"velocity"`` or ``"target"`` |
     | ``pour_threshold`` | int | 5 | particles out of the source that make a pour |
     | ``pour_steps`` | int | 3 | steps in a row they must stay out |
     | ``progress_weight`` | float | 1.0 | weight of ``progress`` |
@@ -174,8 +182,8 @@ class PourEnv(PourGymEnv):
       ``overshoot_weight=1.0`` (progress and overshoot together then sum to minus the
       change of |poured - T| / T: pouring too much costs what pouring too little does,
       and pouring everything no longer costs more than never pouring);
-      ``success_weight=2.0``. Arguments ``hide``, ``perception``, ``scan_seed`` and
-      ``sensor_config``, and the sensor observation modes (``"depth"``, ``"rgb"``,
+      ``success_weight=2.0``. Arguments ``hide``, ``perception``, ``scan_seed``,
+      ``sensor_config`` and ``lip_control``, and the sensor observation modes (``"depth"``, ``"rgb"``,
       ``"points"``, tuples of modes), added (both versions; the defaults change nothing).
     * v0 (this release): the fluid takes substeps by the CFL bound and puts back particles
       that tunnelled into a wall (``info["fluid_corrections"]``), so no action raises; an
@@ -221,6 +229,7 @@ class PourEnv(PourGymEnv):
         max_tilt_rate: float = 60.0,
         max_tilt: float = 135.0,
         tilt_control: str = "rate",
+        lip_control: str = "velocity",
         pour_threshold: int = 5,
         pour_steps: int = 3,
         progress_weight: float = 1.0,
@@ -255,6 +264,7 @@ class PourEnv(PourGymEnv):
             max_tilt_rate=max_tilt_rate,
             max_tilt=max_tilt,
             tilt_control=tilt_control,
+            lip_control=lip_control,
             pour_threshold=pour_threshold,
             pour_steps=pour_steps,
             progress_weight=progress_weight,
@@ -316,6 +326,8 @@ class PourEnv(PourGymEnv):
             raise ValueError(f"max_tilt must be in (0, 180] degrees, not {max_tilt}")
         if tilt_control not in TILT_CONTROLS:
             raise ValueError(f"tilt_control must be one of {TILT_CONTROLS}, not {tilt_control!r}")
+        if lip_control not in LIP_CONTROLS:
+            raise ValueError(f"lip_control must be one of {LIP_CONTROLS}, not {lip_control!r}")
         self.sources = self._containers(source_objects if source_objects is not None else objects)
         self.targets = self._containers(target_objects if target_objects is not None else objects)
         if perception == "scan":
@@ -334,6 +346,7 @@ class PourEnv(PourGymEnv):
         self.max_tilt_rate = float(max_tilt_rate)
         self.max_tilt = float(max_tilt)
         self.tilt_control = tilt_control
+        self.lip_control = lip_control
         self.pour_threshold = int(pour_threshold)
         self.pour_steps = int(pour_steps)
         self.dt = 0.1
@@ -472,13 +485,24 @@ class PourEnv(PourGymEnv):
     def commanded(self, a: np.ndarray) -> tuple[np.ndarray, float]:
         """Where an action sends the lip (m) and the tilt (deg) from where they are now.
 
-        The lip moves at most ``max_speed`` for a step, within the box over the table and
-        above ``z_min``; the tilt at most ``max_tilt_rate`` (as a rate, or towards the
-        angle the action names), within [0, ``max_tilt``].
+        The lip moves at most ``max_speed`` for a step (as a velocity, or towards the place
+        the action names), within the box over the table and above ``z_min``; the tilt at
+        most ``max_tilt_rate`` (as a rate, or towards the angle the action names), within
+        [0, ``max_tilt``].
         """
         lo = np.array([-0.1, -0.3, self.z_min])
         hi = np.array([0.45, 0.3, 0.5])
-        lip = np.clip(self.lip + a[:3] * self.max_speed * self.dt, lo, hi)
+        reach = self.max_speed * self.dt
+        if self.lip_control == "velocity":
+            move = a[:3] * self.max_speed * self.dt  # in this order: Pour-v0's bits
+        else:
+            # In the target's terms as the policy perceives it (its features' geometry).
+            gt = self.seen(self._names["target"]).geometry
+            centre = self.target.to_world(gt.rim_center)
+            move = np.clip(
+                lip_goal(a[:3], centre, gt.rim_radius, self.z_min) - self.lip, -reach, reach
+            )
+        lip = np.clip(self.lip + move, lo, hi)
         most = self.max_tilt_rate * self.dt
         if self.tilt_control == "rate":
             tilt = self.tilt + a[3] * most

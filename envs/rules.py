@@ -23,6 +23,11 @@ UPRIGHT_DEG = 3.0
 # band of actions, not one value, sets the source upright.
 UPRIGHT_BAND = 20.0
 
+# lip_control="target": the lip's goal reaches this many target rim radii from the target's
+# rim centre along x and y, and rises this high above the lowest allowed lip height (m).
+LIP_REACH = 2.0
+LIP_RISE = 0.1
+
 # How a pouring episode ended, first match wins (outcome); README: "why episodes fail".
 POUR_OUTCOMES = {
     "success": "the amount within tolerance, nothing spilled, the source upright",
@@ -149,3 +154,28 @@ def tilt_goal(action: float, max_tilt: float) -> float:
 def tilt_action(goal: float, max_tilt: float) -> float:
     """The angle action naming a tilt (deg): :func:`tilt_goal`'s inverse, not clipped."""
     return 2.0 * (goal + UPRIGHT_BAND) / (max_tilt + UPRIGHT_BAND) - 1.0
+
+
+def lip_goal(
+    action: np.ndarray, rim_centre: np.ndarray, rim_radius: float, z_min: float
+) -> np.ndarray:
+    """The lip position (m, world) a ``lip_control="target"`` action in [-1, 1]^3 names.
+
+    Along x and y, the target's rim centre plus the action times ``LIP_REACH`` rim radii;
+    up, from ``z_min`` (action -1) to ``LIP_RISE`` above it (action 1).
+    """
+    a = np.asarray(action, dtype=np.float64)
+    xy = np.asarray(rim_centre, dtype=np.float64)[:2] + a[:2] * LIP_REACH * rim_radius
+    return np.array([xy[0], xy[1], z_min + 0.5 * (a[2] + 1.0) * LIP_RISE])
+
+
+def lip_action(
+    goal: np.ndarray, rim_centre: np.ndarray, rim_radius: float, z_min: float
+) -> np.ndarray:
+    """The ``lip_control="target"`` action naming a lip goal (m): :func:`lip_goal`'s inverse.
+
+    Not clipped: a goal beyond the action's reach gives values outside [-1, 1].
+    """
+    g = np.asarray(goal, dtype=np.float64)
+    xy = (g[:2] - np.asarray(rim_centre, dtype=np.float64)[:2]) / (LIP_REACH * rim_radius)
+    return np.array([xy[0], xy[1], 2.0 * (g[2] - z_min) / LIP_RISE - 1.0])

@@ -31,6 +31,23 @@ def test_hyperparameters_cover_every_env_and_algo():
         load_hyperparameters("PourGym/Juggle-v0", "sac")
 
 
+def test_every_recipe_is_taken_by_its_algorithm():
+    """Each entry of hyperparams.yaml (variants included) loads: keys the training reads or
+    its algorithm takes, wrappers importable, residual and noise schedule well formed."""
+    from importlib.resources import files
+
+    import yaml
+
+    from pour_gym.agents.training.config import algorithm
+    from pour_gym.agents.training.recipes import load_recipe
+
+    table = yaml.safe_load(files("pour_gym.agents").joinpath("hyperparams.yaml").read_text())
+    for name, recipes in table.items():
+        for key in recipes:
+            algo, _, variant = key.partition("/")
+            load_recipe(name, algo, algorithm(algo), variant=variant)
+
+
 def test_training_starts_draw_where_an_episode_starts_and_how_full():
     """The curriculum's starts: over the target's opening, a fill of T plus a margin in
     the range; options the caller gives win; the env refuses a margin with a fixed fill."""
@@ -439,3 +456,30 @@ def test_loading_a_model_file_warns_to_trust_its_source(tmp_path):
     shutil.copytree(MODELS / "pour-v0-red-cup-features", copy)
     with pytest.warns(UserWarning, match="sources you trust"):
         load_run(copy / "model.zip")
+
+
+def test_a_noise_schedule_caps_ppo_action_noise_down_to_its_final_std():
+    """noise_schedule {start, std}: from ``start`` the policy's std is capped by a cap
+    falling geometrically from 1 to ``std`` at the run's end; SAC (no log_std) is refused."""
+    import gymnasium as gym
+    from stable_baselines3 import PPO, SAC
+
+    from pour_gym.agents.training.noise import NoiseSchedule, noise_callback
+
+    schedule = NoiseSchedule.from_recipe({"start": 128, "std": 0.1})
+    assert schedule.cap(127, 512) is None and schedule.cap(128, 512) == 0.0
+    assert np.exp(schedule.cap(320, 512)) == pytest.approx(0.1**0.5)
+    assert np.exp(schedule.cap(512, 512)) == pytest.approx(0.1)
+    assert np.exp(schedule.cap(900, 512)) == pytest.approx(0.1)  # past the end: the final
+    for bad in ({"start": 10}, {"start": -1, "std": 0.1}, {"start": 0, "std": 0.0}):
+        with pytest.raises(InputError, match="noise_schedule"):
+            NoiseSchedule.from_recipe(bad)
+    env = gym.make("Pendulum-v1")
+    model = PPO("MlpPolicy", env, n_steps=64, batch_size=64, n_epochs=1, seed=0, device="cpu")
+    model.learn(512, callback=noise_callback(schedule, 512))
+    # The last rollout started at 448: cap 0.1 ** (320 / 384); one update after it.
+    std = model.policy.log_std.exp().detach().numpy()
+    assert np.all(std <= 0.1 ** (320 / 384) * 1.02), std
+    sac = SAC("MlpPolicy", env, learning_starts=0, seed=0, device="cpu")
+    with pytest.raises(InputError, match="log_std"):
+        sac.learn(10, callback=noise_callback(schedule, 10))

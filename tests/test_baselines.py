@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import shutil
 
 import numpy as np
 import pytest
@@ -55,8 +56,14 @@ def test_report_groups_seeds_and_gives_intervals_over_them(tmp_path):
     (best,) = [r for r in doc["rows"] if r["model"] == "best curve point"]
     assert best["seeds"] == [0] and best["trained_success"]["mean"] == pytest.approx(0.6)
     text = paths["report"].read_text()
-    assert "| Pour-v1 | SAC | features | reward | last step | 3 | 0.80 [" in text
-    assert "| Pour-v1 | PPO | features | reward | best curve point | 1 | 0.60 |" in text
+    assert (
+        "| Pour-v1 | SAC | features | reward | last step | red_cup | catalogue (2) | 3 | 0.80 ["
+        in text
+    )
+    assert (
+        "| PPO | features | reward | best curve point | red_cup | catalogue (2) | 1 | 0.60 |"
+        in text
+    )
     assert paths["curves"].is_file() and "(b/curves.png)" in text
     # Regenerated from the summaries alone, the same report.
     baselines_report([], **paths)
@@ -81,11 +88,56 @@ def test_the_expert_is_a_reference_row_over_the_runs_unseen_containers(tmp_path)
     assert ref["unseen_amount_error"]["mean"] == pytest.approx(3.0)  # (2 + 4) / 2
     assert ref["trained_success"]["mean"] == 1.0
     text = paths["report"].read_text()
-    assert "| SCRIPTED | features | hand-written (reference) | deterministic | 1 |" in text
+    assert (
+        "| SCRIPTED | features | hand-written (reference) | deterministic | - | catalogue (2) | 1 |"
+        in text
+    )
     bad = tmp_path / "bad.json"
     bad.write_text("{}")
     with pytest.raises(InputError, match="pour-gym evaluate scripted"):
         baselines_report([], reference=bad, **paths)
+
+
+def test_a_family_run_is_a_row_of_its_own_scored_against_references_on_its_members(tmp_path):
+    """A run over procedural:train, scored on procedural:test members, is not a seed of the
+    red-cup runs; its aggregates come from the references on the same members."""
+    _run(tmp_path / "runs" / "ppo_s0", 0, 1.0, algo="ppo")
+    family = tmp_path / "runs" / "family_s0"
+    _run(family, 0, 1.0, algo="ppo")
+    config = json.loads((family / "config.json").read_text())
+    (family / "config.json").write_text(json.dumps({**config, "objects": "procedural:train"}))
+
+    def rows(returns):
+        return [{"object": f"procedural:test#{k}", "trained_on": False, "success": 1.0,
+                 "amount_error": 2.0, "spilled": 0.0, "return": ret}
+                for k, ret in enumerate(returns)]  # fmt: skip
+
+    (family / "eval.json").write_text(json.dumps({"episodes": 2, "rows": rows([1.0, 3.0])}))
+    sde = tmp_path / "runs" / "family_sde_s0"  # exploring by gSDE: a row of its own
+    shutil.copytree(family, sde)
+    config = json.loads((sde / "config.json").read_text())
+    config["hyperparameters"]["use_sde"] = True
+    (sde / "config.json").write_text(json.dumps(config))
+    refs = []
+    for policy, returns in (("scripted", [2.0, 2.0]), ("random", [0.0, 0.0])):
+        refs.append(tmp_path / f"{policy}.json")
+        refs[-1].write_text(json.dumps({"env": "PourGym/Pour-v1", "episodes": 2,
+                                        "policy": policy, "rows": rows(returns)}))  # fmt: skip
+    paths = {"summaries": tmp_path / "sum", "report": tmp_path / "b.md",
+             "curves": tmp_path / "b" / "curves.png"}  # fmt: skip
+    doc = baselines_report([tmp_path / "runs"], reference=refs, **paths)
+    (fam,) = [r for r in doc["rows"] if r["objects"] == "procedural:train" and r["algo"] == "ppo"]
+    (fam_sde,) = [r for r in doc["rows"] if r["algo"] == "ppo (gSDE)"]
+    assert fam_sde["seeds"] == [0] and fam_sde["iqm"] == fam["iqm"]
+    assert fam["scored_on"] == "procedural:test (2)" and fam["seeds"] == [0]
+    # Normalised returns 0.5 and 1.5 (random 0, expert 2): one beats the expert, one not.
+    assert fam["iqm"][0] == pytest.approx(1.0) and fam["improvement"][0] == pytest.approx(0.5)
+    (red,) = [r for r in doc["rows"] if r["algo"] == "ppo" and r["objects"] == "red_cup"]
+    assert red["iqm"] is None  # no references on its catalogue containers
+    assert (tmp_path / "sum" / "scripted-expert-pour-v1-procedural-test.json").is_file()
+    text = paths["report"].read_text()
+    assert "| procedural:train | procedural:test (2) | 1 |" in text
+    assert "| Pour-v1 | PPO (gSDE) | features | reward |" in text
 
 
 def test_intervals_and_kinds():

@@ -16,8 +16,9 @@ from gymnasium.utils.env_checker import check_env as gym_check_env
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 from pour_gym.agents.policies.rollout import rollout
-from pour_gym.agents.policies.scripted import ScriptedPourPolicy
+from pour_gym.agents.policies.scripted import ScriptedPourPolicy, action_settings
 from pour_gym.envs import ENV_IDS, ENVS, POUR, POUR_V0, POUR_V1, entry, task_of
+from pour_gym.envs.rules import lip_action, lip_goal
 from pour_gym.features import fluid_features, relative_distance_height
 from pour_gym.objects import cylinder_cup
 
@@ -188,6 +189,45 @@ def test_angle_tilt_control_goes_to_the_commanded_tilt_at_the_rate_limit(make_en
     env.close()
     with pytest.raises(ValueError, match="tilt_control"):
         make_env(POUR_V0, objects="red_cup", tilt_control="torque")
+
+
+def test_target_lip_control_goes_to_the_named_place_at_the_speed_limit(make_env):
+    """lip_control="target": the lip goes to the place over the target the action names
+    (rim centre + action x 2 rim radii, height from z_min), no faster than max_speed."""
+    env = make_env(POUR_V0, objects="red_cup", lip_control="target", max_speed=0.15)
+    env.reset(seed=0)
+    u = env.unwrapped
+    gt = u.target.asset.geometry
+    centre = u.target.to_world(gt.rim_center)
+    a = np.array([-0.25, 0.1, 0.0, -1.0], np.float32)
+    goal = np.array(
+        [centre[0] - 0.5 * gt.rim_radius, centre[1] + 0.2 * gt.rim_radius, u.z_min + 0.05]
+    )
+    assert lip_goal(a[:3], centre, gt.rim_radius, u.z_min) == pytest.approx(goal)
+    assert lip_action(goal, centre, gt.rim_radius, u.z_min) == pytest.approx(a[:3])
+    lips = [u.lip.copy()]
+    for _ in range(40):
+        env.step(a)
+        lips.append(u.lip.copy())
+    steps = np.abs(np.diff(lips, axis=0))
+    assert steps.max() <= 0.15 * 0.1 + 1e-12  # 0.15 m/s along each axis for 0.1 s
+    assert steps[0].max() == pytest.approx(0.015)  # at full speed while far
+    assert lips[-1] == pytest.approx(goal, abs=1e-9)  # there, and held
+    env.step(np.array([0, 0, -1, -1], np.float32))  # lowest: z_min
+    assert u.lip[2] == pytest.approx(max(u.z_min, goal[2] - 0.015))
+    with pytest.raises(ValueError, match="lip_control"):
+        make_env(POUR_V0, objects="red_cup", lip_control="position")
+
+
+def test_the_scripted_policy_pours_through_the_target_lip_control(make_env):
+    """The expert names places (lip_control="target") and pours as it does by velocities."""
+    kwargs = {"objects": ["red_cup", "standard_cup"], "lip_control": "target"}
+    env = make_env(POUR_V1, **kwargs)
+    policy = ScriptedPourPolicy(**action_settings(POUR_V1, kwargs))
+    assert (policy.lip_control, policy.lip_speed, policy.tilt_control) == ("target", 0.15, "angle")
+    for seed in range(3):
+        info = rollout(env, policy, seed=seed).info
+        assert info["is_success"] and info["spilled"] == 0, info
 
 
 def test_observations_hold_the_library_features(make_env):

@@ -11,7 +11,7 @@ from test_agents import train_command
 
 from pour_gym.agents.policies.residual import PHASES, ExpertResidual, ResidualConfig, ResidualPolicy
 from pour_gym.agents.policies.rollout import rollout
-from pour_gym.agents.policies.scripted import ScriptedPourPolicy, tilt_settings
+from pour_gym.agents.policies.scripted import ScriptedPourPolicy, action_settings
 from pour_gym.envs import make
 from pour_gym.errors import InputError
 
@@ -24,9 +24,11 @@ def _zero(obs: np.ndarray) -> np.ndarray:
 
 def test_a_correction_of_zero_pours_as_the_expert_does():
     env = make("PourGym/Pour-v0", objects=["red_cup"], **SMALL)
-    tilt = tilt_settings("PourGym/Pour-v0")
-    expert = rollout(env, ScriptedPourPolicy(**tilt), seed=3, keep_infos=True)
-    residual = rollout(env, ResidualPolicy(_zero, ResidualConfig(), tilt), seed=3, keep_infos=True)
+    settings = action_settings("PourGym/Pour-v0")
+    expert = rollout(env, ScriptedPourPolicy(**settings), seed=3, keep_infos=True)
+    residual = rollout(
+        env, ResidualPolicy(_zero, ResidualConfig(), settings), seed=3, keep_infos=True
+    )
     env.close()
     assert expert.steps == residual.steps and expert.info["poured"] > 0
     assert [i["poured"] for i in expert.infos] == [i["poured"] for i in residual.infos]
@@ -101,13 +103,19 @@ def test_the_residual_recipe_trains_and_its_run_acts_with_the_expert(tmp_path):
     assert missing.returncode == 2 and "ppo/nope" in missing.stderr
 
 
-def test_the_shipped_residual_acts_with_its_expert_and_pours():
-    """The shipped model loads as expert plus correction and pours a small episode."""
+@pytest.mark.parametrize(
+    ("name", "env_id"),
+    [("pour-v0-red-cup-residual", "PourGym/Pour-v0"),
+     ("pandapour-v0-red-cup-residual", "PourGym/PandaPour-v0")],
+)  # fmt: skip
+def test_the_shipped_residuals_act_with_their_expert_and_pour(name, env_id):
+    """A shipped model loads as expert plus correction and pours a small episode (through
+    the arm, for PandaPour-v0's)."""
     from pour_gym.agents.evaluation.evaluate import load_policy
 
-    loaded = load_policy("pour-v0-red-cup-residual")
-    assert isinstance(loaded.policy, ResidualPolicy) and loaded.env_id == "PourGym/Pour-v0"
-    env = make("PourGym/Pour-v0", objects=["red_cup"], **SMALL)
+    loaded = load_policy(name)
+    assert isinstance(loaded.policy, ResidualPolicy) and loaded.env_id == env_id
+    env = make(env_id, objects=["red_cup"], **SMALL)
     episode = rollout(env, loaded.policy, seed=5)
     env.close()
     assert episode.info["poured"] > 0 and episode.info["spilled"] == 0

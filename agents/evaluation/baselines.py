@@ -8,8 +8,9 @@ committed: the report can be regenerated from them without the run directories (
 checkpoints and replay buffers are hundreds of MB).
 
 A row is one way of training (environment, algorithm, observation mode, whether it learnt
-from the reward alone, cloned the expert, or cloned then learnt, and which model of a run
-was evaluated: the last step's or, with ``--keep-best``, the best curve point's): its seeds' mean
+from the reward alone, cloned the expert, or cloned then learnt, which model of a run
+was evaluated: the last step's or, with ``--keep-best``, the best curve point's, what it
+trained on and which unseen containers it was scored on): its seeds' mean
 of each metric, with a 95 % bootstrap interval over the seeds, and over the seeds and the
 unseen containers, rliable's aggregates (:mod:`pour_gym.agents.evaluation.aggregate`): the
 interquartile mean of the return normalised between a seeded random policy (0) and the
@@ -107,6 +108,19 @@ def _metrics(rows: list[dict]) -> dict[str, float | None]:
     }
 
 
+def scored_on(rows: list[dict]) -> str:
+    """What a summary's unseen metrics are over, as the report's column says it.
+
+    ``"procedural:test (100)"`` when every unseen container is a member of one family,
+    else ``"catalogue (11)"``: how many containers, and which kind.
+    """
+    unseen = sorted({r["object"] for r in rows if not r["trained_on"]})
+    families = {name.split("#")[0] for name in unseen}
+    if len(families) == 1 and all("#" in name for name in unseen):
+        return f"{families.pop()} ({len(unseen)})"
+    return f"catalogue ({len(unseen)})"
+
+
 def run_summary(run_dir: Path) -> dict:
     """The summary of one ``train.py`` run directory (config.json and eval.json in it).
 
@@ -131,6 +145,8 @@ def run_summary(run_dir: Path) -> dict:
         "obs_mode": config["obs_mode"],
         "kind": training_kind(config),
         "model": model_kind(config),
+        # Exploration other than the algorithm's own Gaussian noise (a row of its own).
+        "exploration": "gSDE" if config.get("hyperparameters", {}).get("use_sde") else "",
         "seed": config["seed"],
         "timesteps": config["timesteps"],
         "wall_seconds": _wall_seconds(run_dir, result),
@@ -174,8 +190,11 @@ def reference_summary(eval_path: Path, trained_on: tuple[str, ...] = ("red_cup",
             "(or random)"
         ) from None
     env = result["env"]
+    where = scored_on(rows)
+    # One reference per env and set of containers: the catalogue's keeps its old name.
+    suffix = "" if where.startswith("catalogue") else "-" + where.split()[0].replace(":", "-")
     return {
-        "run": f"{prefix}-{env.split('/')[-1].lower()}",
+        "run": f"{prefix}-{env.split('/')[-1].lower()}{suffix}",
         "env": env,
         "algo": algo,
         "obs_mode": "features" if algo == "scripted" else "-",
@@ -242,7 +261,10 @@ def _algorithm(algo: str, kind: str) -> str:
     """A row's algorithm as the report names it."""
     # A clone (no update of the algorithm's own) is behaviour cloning, whatever network it
     # was cloned into (runs from before --algo bc record tqc).
-    return "BC" if kind == "clone" else algo.upper()
+    if kind == "clone":
+        return "BC"
+    name, _, exploration = algo.partition(" ")  # "ppo (gSDE)": PPO exploring by gSDE
+    return " ".join([name.upper(), *([exploration] if exploration else [])])
 
 
 def _aggregate_cell(value: tuple[float, tuple[float, float]] | None) -> str:
@@ -252,8 +274,13 @@ def _aggregate_cell(value: tuple[float, tuple[float, float]] | None) -> str:
     return f"{v:.2f} [{lo:.2f}, {hi:.2f}]"
 
 
-def _group_key(s: dict) -> tuple[str, str, str, str, str]:
-    return (s["env"], s["algo"], s["obs_mode"], s["kind"], s.get("model", "last step"))
+def _group_key(s: dict) -> tuple[str, str, str, str, str, str, str]:
+    """A row: the env, how it learnt, which model, what it trained on and was scored on."""
+    algo = s["algo"] + (f" ({s['exploration']})" if s.get("exploration") else "")
+    return (
+        s["env"], algo, s["obs_mode"], s["kind"], s.get("model", "last step"),
+        s.get("objects") or "-", scored_on(s["eval_rows"]),
+    )  # fmt: skip
 
 
 def _cell(stat: dict, digits: int) -> str:
@@ -299,10 +326,13 @@ def _plot(groups: dict[tuple, list[dict]], path: Path) -> Path:
             [[dict(zip(c["timesteps"], c["success"], strict=True))[x] for x in steps]
              for c in curves]
         )  # fmt: skip
-        env, algo, mode, kind, model = key
+        env, algo, mode, kind, model, objects, _ = key
         seeds = f"{len(curves)} seed" + ("s" if len(curves) > 1 else "")
         how = ", sampled" if "sampled" in model else ""
-        label = f"{env.split('/')[-1]} {_algorithm(algo, kind)} {mode}, {kind}{how} ({seeds})"
+        label = (
+            f"{env.split('/')[-1]} {_algorithm(algo, kind)} {mode} on {objects}, {kind}{how} "
+            f"({seeds})"
+        )
         line = ax.plot(steps, ys.mean(axis=0), "o-", label=label, markersize=3)[0]
         if len(curves) > 1:
             band = np.array([mean_interval(list(ys[:, k])) for k in range(len(steps))])
@@ -310,7 +340,7 @@ def _plot(groups: dict[tuple, list[dict]], path: Path) -> Path:
     # Log steps: a clone's 2000 steps and a learner's 400k on one axis.
     ax.set_xscale("log")
     ax.set_xlabel("environment steps")
-    ax.set_ylabel("success on the training container\n(as the row's model is scored)")
+    ax.set_ylabel("success on the training containers\n(as the row's model is scored)")
     ax.set_ylim(-0.02, 1.02)
     ax.set_title("Learning curves: mean over seeds, band: its 95 % bootstrap interval", fontsize=10)
     if ax.get_legend_handles_labels()[0]:  # rows without curves (references) draw none
@@ -336,14 +366,16 @@ def baselines_report(
             regenerate from the committed summaries.
         reference: evaluations of the scripted expert and of the random policy
             (``pour-gym evaluate scripted|random --json``), each added as a reference row
-            (:func:`reference_summary`); both, per env, give the rows' aggregates.
+            (:func:`reference_summary`); both, per env and set of unseen containers, give
+            the rows' aggregates.
         summaries: the folder of run summaries.
         report: the markdown report to write.
         curves: the learning curves' PNG.
 
     Returns:
-        ``{"rows": [{env, algo, obs_mode, kind, model, seeds, each metric's mean and interval,
-        timesteps, wall minutes, iqm and improvement (value, interval) or None}]}``.
+        ``{"rows": [{env, algo, obs_mode, kind, model, objects, scored_on, seeds, each
+        metric's mean and interval, timesteps, wall minutes, iqm and improvement (value,
+        interval) or None}]}``.
 
     Raises:
         InputError: a folder that holds no finished run, or no summaries at all.
@@ -367,20 +399,21 @@ def baselines_report(
     found = [json.loads(p.read_text()) for p in sorted(summaries.glob("*.json"))]
     if not found:
         raise InputError(f"no run summaries in {summaries}: pass --runs DIR")
-    references: dict[str, dict[str, dict]] = {}
+    references: dict[tuple[str, str], dict[str, dict]] = {}
     for s in found:
         if s["algo"] in REFERENCES:
-            references.setdefault(s["env"], {})[s["algo"]] = s
+            references.setdefault((s["env"], scored_on(s["eval_rows"])), {})[s["algo"]] = s
     groups: dict[tuple, list[dict]] = {}
     for s in found:
         groups.setdefault(_group_key(s), []).append(s)
-    header = ["env", "algorithm", "observation", "learnt from", "model", "seeds",
-              *METRICS.values(), "normalised return, unseen (IQM)",
+    header = ["env", "algorithm", "observation", "learnt from", "model", "trained on",
+              "unseen", "seeds", *METRICS.values(), "normalised return, unseen (IQM)",
               "P(above the expert), unseen", "env steps", "wall time (min)"]  # fmt: skip
     table, rows = [], []
     for key, group in sorted(groups.items()):
-        env, algo, mode, kind, model = key
+        env, algo, mode, kind, model, objects, where = key
         row = {"env": env, "algo": algo, "obs_mode": mode, "kind": kind, "model": model,
+               "objects": objects, "scored_on": where,
                "seeds": sorted(s["seed"] for s in group)}  # fmt: skip
         cells = []
         for name in METRICS:
@@ -391,7 +424,7 @@ def baselines_report(
             cells.append(_cell(row[name], 2 if "success" in name else 1))
         wall = [s["wall_seconds"] / 60 for s in group if s["wall_seconds"] is not None]
         steps = sorted({s["timesteps"] for s in group})
-        agg = aggregates(group, references.get(env, {}))
+        agg = aggregates(group, references.get((env, where), {}))
         row.update(
             timesteps=steps,
             wall_minutes=wall,
@@ -406,6 +439,8 @@ def baselines_report(
                 mode,
                 kind,
                 model,
+                objects,
+                where,
                 str(len(group)),
                 *cells,
                 _aggregate_cell(row["iqm"]),
@@ -420,15 +455,18 @@ def baselines_report(
         "",
         "<!-- Written by `pour-gym report baselines` from docs/baselines/runs/*.json. -->",
         "",
-        "Each row is one way of training on the red cup, run with several seeds; each cell "
-        "is the mean over the seeds with a 95 % stratified-bootstrap interval over them in "
-        "brackets (one seed: no interval). *Trained on*: the training container's "
-        "evaluation episodes; *unseen*: the mean over the containers the run never trained "
-        "on, each as source and target, at seeds training never used. Amount error is "
-        "|poured - target| in particles (0.125 ml each). A *hand-written (reference)* row "
-        "is the scripted expert on the same containers and seeds (it is not trained: "
-        "*trained on* is the red cup); a *uniform random (reference)* row, actions drawn "
-        "uniformly from the action space, seeded per episode.",
+        "Each row is one way of training (on the red cup, or over a procedural family), run "
+        "with several seeds; each cell is the mean over the seeds with a 95 % "
+        "stratified-bootstrap interval over them in brackets (one seed: no interval). "
+        "*Trained on*: what the run trained on, and the success on its evaluation episodes "
+        "of those containers; *unseen*: the containers the run never trained on that its "
+        "unseen metrics are the mean over (the 11 catalogue containers but the red cup, or "
+        "the members of `procedural:test`), each as source and target, at seeds training "
+        "never used. Amount error is |poured - target| in particles (0.125 ml each). A "
+        "*hand-written (reference)* row is the scripted expert on the same containers and "
+        "seeds (it is not trained: its *trained on* success is the red cup's); a *uniform "
+        "random (reference)* row, actions drawn uniformly from the action space, seeded per "
+        "episode.",
         "",
         "The last two metrics follow rliable (Agarwal et al., 2021; "
         "`pour_gym.agents.evaluation.aggregate`), over the seeds x unseen containers: *normalised "
@@ -441,7 +479,7 @@ def baselines_report(
         "1 and above 0.5: beyond the expert. A row trained and evaluated with reward "
         "weights of its own (the residual's) has none: its returns are in other units.",
         "",
-        markdown_table(header, table, align="lllllr" + "r" * (len(METRICS) + 4)),
+        markdown_table(header, table, align="lllllllr" + "r" * (len(METRICS) + 4)),
         "",
         f"![learning curves]({os.path.relpath(curves, Path(report).parent)})",
         "",

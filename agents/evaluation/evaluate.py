@@ -76,7 +76,7 @@ def load_policy(
     if name == "scripted" or name.endswith(".json"):
         if actions is not None:
             raise InputError("--actions is for a trained model; the scripted policy has no noise")
-        from pour_gym.agents.policies.scripted import ScriptedPourPolicy, tilt_settings
+        from pour_gym.agents.policies.scripted import ScriptedPourPolicy, action_settings
         from pour_gym.agents.policies.search import load_search
 
         env_id = env_id or POUR_V0
@@ -88,12 +88,12 @@ def load_policy(
             raise InputError(
                 f"the scripted policy pours from a source into a target, not in {env_id}"
             )
-        tilt = tilt_settings(env_id)
+        settings = action_settings(env_id)
         if name == "scripted":
-            return LoadedPolicy(ScriptedPourPolicy(**tilt), env_id)
+            return LoadedPolicy(ScriptedPourPolicy(**settings), env_id)
         found = load_search(name)  # the best of a policy search, on the containers it searched
         return LoadedPolicy(
-            ScriptedPourPolicy(**found["best"], **tilt), env_id,
+            ScriptedPourPolicy(**found["best"], **settings), env_id,
             trained_on=list(found.get("sources", [])),
         )  # fmt: skip
     from pour_gym.agents.training.runs import load_run

@@ -25,11 +25,14 @@ from dataclasses import asdict, dataclass, field
 import gymnasium as gym
 import numpy as np
 
-from pour_gym.agents.policies.scripted import ScriptedPourPolicy, tilt_settings
+from pour_gym.agents.policies.scripted import (
+    ACTION_SETTINGS,
+    ScriptedPourPolicy,
+    action_settings,
+)
 from pour_gym.errors import InputError
 
 PHASES = ("move", "tilt", "back")  # the expert's phases, appended one-hot
-TILT_KEYS = ("tilt_control", "max_tilt_rate", "max_tilt")
 
 
 @dataclass(frozen=True)
@@ -40,7 +43,7 @@ class ResidualConfig:
         scale: the learner's action is multiplied by this (one value, or one per action
             dimension) before it is added to the expert's: how far it may move the
             expert's action (the tilt action of Pour-v0 while pouring is 0.06 or less).
-        expert: arguments of the scripted expert (its tilt settings come from the env).
+        expert: arguments of the scripted expert (its action settings come from the env).
     """
 
     scale: tuple[float, ...] = (0.05, 0.05, 0.05, 0.1)
@@ -57,7 +60,7 @@ class ResidualConfig:
         if not all(s > 0 for s in scale):
             raise InputError(f"residual scale must be positive, not {list(scale)}")
         expert = dict(value.get("expert") or {})
-        known = set(ScriptedPourPolicy.__dataclass_fields__) - set(TILT_KEYS) - {"dt"}
+        known = set(ScriptedPourPolicy.__dataclass_fields__) - set(ACTION_SETTINGS) - {"dt"}
         bad = sorted(set(expert) - known)
         if bad:
             raise InputError(f"unknown expert arguments {bad} in residual; use {sorted(known)}")
@@ -73,12 +76,15 @@ class ResidualCore:
 
     Args:
         config: the residual's scale and expert arguments.
-        tilt: the env's ``tilt_control``, ``max_tilt_rate`` (deg/s) and ``max_tilt`` (deg).
+        settings: the env's action form
+            (:func:`~pour_gym.agents.policies.scripted.action_settings`).
         action_dim: the env's action dimension.
     """
 
-    def __init__(self, config: ResidualConfig, tilt: dict, action_dim: int = 4):
-        self.expert = ScriptedPourPolicy(**config.expert, **{k: tilt[k] for k in TILT_KEYS})
+    def __init__(self, config: ResidualConfig, settings: dict, action_dim: int = 4):
+        self.expert = ScriptedPourPolicy(
+            **config.expert, **{k: settings[k] for k in ACTION_SETTINGS}
+        )
         scale = np.asarray(config.scale, dtype=np.float64)
         if scale.size not in (1, action_dim):
             raise InputError(
@@ -107,14 +113,14 @@ class ResidualCore:
         return np.clip(self.base + correction, -1.0, 1.0)
 
 
-def _tilt_of(env: gym.Env) -> dict:
+def _settings_of(env: gym.Env) -> dict:
     env = env.unwrapped
     if getattr(env, "obs_mode", None) != "features":
         raise InputError(
             "a residual on the scripted expert needs obs_mode='features' (the expert reads "
             f"the warped features), not {getattr(env, 'obs_mode', None)!r}"
         )
-    return {k: getattr(env, k) for k in TILT_KEYS}
+    return {mine: getattr(env, theirs) for mine, theirs in ACTION_SETTINGS.items()}
 
 
 class ExpertResidual(gym.Wrapper, gym.utils.RecordConstructorArgs):
@@ -134,7 +140,7 @@ class ExpertResidual(gym.Wrapper, gym.utils.RecordConstructorArgs):
         gym.utils.RecordConstructorArgs.__init__(self, scale=scale, expert=expert)
         super().__init__(env)
         config = ResidualConfig.from_recipe({"scale": scale, "expert": expert or {}})
-        self.core = ResidualCore(config, _tilt_of(env), env.action_space.shape[0])
+        self.core = ResidualCore(config, _settings_of(env), env.action_space.shape[0])
         space = env.observation_space
         extra = self.core.base.size + len(PHASES)
         low = np.concatenate([space.low, -np.ones(self.core.base.size), np.zeros(len(PHASES))])
@@ -161,14 +167,15 @@ class ResidualPolicy:
         learner: the learner as a policy of the augmented observation (its ``reset``,
             with or without a seed, is passed on).
         config: the residual's scale and expert.
-        tilt: the env's tilt settings (:func:`~pour_gym.agents.policies.scripted.tilt_settings`).
+        settings: the env's action form
+            (:func:`~pour_gym.agents.policies.scripted.action_settings`).
     """
 
     def __init__(
-        self, learner: Callable[[np.ndarray], np.ndarray], config: ResidualConfig, tilt: dict
+        self, learner: Callable[[np.ndarray], np.ndarray], config: ResidualConfig, settings: dict
     ):
         self.learner = learner
-        self.core = ResidualCore(config, tilt)
+        self.core = ResidualCore(config, settings)
 
     def reset(self, seed: int | None = None) -> None:
         """Start an episode (the expert's phase; the learner's noise seed, if it samples)."""
@@ -197,5 +204,5 @@ def residual_policy(learner: Callable, run_config: dict) -> Callable[[np.ndarray
     env_kwargs = run_config.get("env_kwargs") or {}
     if env_kwargs.get("obs_mode", run_config.get("obs_mode", "features")) != "features":
         raise InputError("a residual on the scripted expert needs obs_mode='features'")
-    tilt = tilt_settings(run_config["env"], env_kwargs)
-    return ResidualPolicy(learner, ResidualConfig.from_recipe(value), tilt)
+    settings = action_settings(run_config["env"], env_kwargs)
+    return ResidualPolicy(learner, ResidualConfig.from_recipe(value), settings)

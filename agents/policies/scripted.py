@@ -17,10 +17,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pour_gym.envs.pour import FEATURE_NAMES, TILT_CONTROLS
-from pour_gym.envs.rules import tilt_action
+from pour_gym.envs.pour import FEATURE_NAMES, LIP_CONTROLS, TILT_CONTROLS
+from pour_gym.envs.rules import LIP_REACH, tilt_action
 
 _I = {name: k for k, name in enumerate(FEATURE_NAMES)}
+# The policy's settings of the env's action form: its field -> the env's argument.
+ACTION_SETTINGS = {
+    "tilt_control": "tilt_control",
+    "max_tilt_rate": "max_tilt_rate",
+    "max_tilt": "max_tilt",
+    "lip_control": "lip_control",
+    "lip_speed": "max_speed",
+}
 
 
 def approach_lip(obs: np.ndarray, lip_offset: float, speed: float) -> tuple[np.ndarray, float]:
@@ -74,10 +82,16 @@ class ScriptedPourPolicy:
         tilt_control: the env's tilt action, ``"rate"`` (Pour-v0) or ``"angle"``
             (Pour-v1): the policy decides a rate and, for ``"angle"``, gives the tilt one
             step at that rate reaches (from the observed tilt), which the env moves to
-            at the same rate. :func:`tilt_settings` reads it and the next two from an env id.
+            at the same rate. :func:`action_settings` reads it and the next four from an
+            env id.
         max_tilt_rate: the env's ``max_tilt_rate``, deg/s (``"angle"`` only).
         max_tilt: the env's ``max_tilt``, deg (``"angle"`` only).
-        dt: the env's step, s (``"angle"`` only).
+        lip_control: the env's lip action, ``"velocity"`` or ``"target"``: the policy
+            decides a velocity and, for ``"target"``, names the place one step at that
+            velocity reaches along x and y (from the observed lip), and the lowest height
+            (the policy only ever lowers the lip, and pours from the lowest height).
+        lip_speed: the env's ``max_speed``, m/s (``"target"`` only).
+        dt: the env's step, s (``"angle"`` and ``"target"`` only).
     """
 
     lip_offset: float = 0.6
@@ -95,6 +109,8 @@ class ScriptedPourPolicy:
     tilt_control: str = "rate"
     max_tilt_rate: float = 60.0
     max_tilt: float = 135.0
+    lip_control: str = "velocity"
+    lip_speed: float = 0.15
     dt: float = 0.1
 
     def __post_init__(self) -> None:
@@ -102,6 +118,8 @@ class ScriptedPourPolicy:
             raise ValueError(
                 f"tilt_control must be one of {TILT_CONTROLS}, not {self.tilt_control!r}"
             )
+        if self.lip_control not in LIP_CONTROLS:
+            raise ValueError(f"lip_control must be one of {LIP_CONTROLS}, not {self.lip_control!r}")
         self.reset()
 
     def reset(self) -> None:
@@ -116,6 +134,13 @@ class ScriptedPourPolicy:
         if self.tilt_control == "angle":
             goal = 90.0 * obs[_I["tilt"]] + action[3] * self.max_tilt_rate * self.dt
             action[3] = np.clip(tilt_action(goal, self.max_tilt), -1.0, 1.0)
+        if self.lip_control == "target":
+            # The lip relative to the target's rim centre, in rim radii, one step on.
+            r_t = obs[_I["target_rim_radius"]] * 0.1
+            lip = -np.array([obs[_I["lip_dx"]], obs[_I["lip_dy"]]], dtype=np.float64)
+            goal = lip + action[:2] * self.lip_speed * self.dt / r_t
+            action[:2] = np.clip(goal / LIP_REACH, -1.0, 1.0)
+            action[2] = -1.0
         return action
 
     def _rate_action(self, o: np.ndarray) -> np.ndarray:
@@ -150,11 +175,12 @@ class ScriptedPourPolicy:
         return action
 
 
-def tilt_settings(env_id: str, env_kwargs: dict | None = None) -> dict:
-    """The tilt arguments of :class:`ScriptedPourPolicy` for an env id and its arguments.
+def action_settings(env_id: str, env_kwargs: dict | None = None) -> dict:
+    """The action-form arguments of :class:`ScriptedPourPolicy` for an env id and its arguments.
 
-    The env's ``tilt_control``, ``max_tilt_rate`` and ``max_tilt``: its class's defaults,
-    then the id's registered ones (Pour-v1's angle control), then ``env_kwargs``.
+    The env's ``tilt_control``, ``max_tilt_rate``, ``max_tilt``, ``lip_control`` and
+    ``max_speed`` (as ``lip_speed``): its class's defaults, then the id's registered ones
+    (Pour-v1's angle control), then ``env_kwargs``.
     """
     import inspect
 
@@ -164,7 +190,9 @@ def tilt_settings(env_id: str, env_kwargs: dict | None = None) -> dict:
     from pour_gym.envs.pour import PourEnv
 
     register_envs()
-    keys = ("tilt_control", "max_tilt_rate", "max_tilt")
-    defaults = {k: inspect.signature(PourEnv).parameters[k].default for k in keys}
     given = {**gym.spec(env_id).kwargs, **(env_kwargs or {})}
-    return {**defaults, **{k: given[k] for k in keys if k in given}}
+    defaults = inspect.signature(PourEnv).parameters
+    return {
+        mine: given.get(theirs, defaults[theirs].default)
+        for mine, theirs in ACTION_SETTINGS.items()
+    }

@@ -17,6 +17,7 @@ from pour_gym.agents.training.curves import (
     training_callbacks,
 )
 from pour_gym.agents.training.moved_modules import importable_old_paths
+from pour_gym.agents.training.noise import noise_callback
 from pour_gym.agents.training.recipes import Recipe, load_recipe
 from pour_gym.agents.training.runs import (
     BEST,
@@ -123,6 +124,9 @@ def train(config: TrainConfig) -> dict:
         "env_wrapper": recipe.env_wrapper,
         # A learner of corrections to the expert: whatever loads the run acts with both.
         "residual": recipe.residual.to_dict() if recipe.residual else None,
+        "noise_schedule": (
+            dataclasses.asdict(recipe.noise_schedule) if recipe.noise_schedule else None
+        ),
         # What the environments were made with (recipe and run): evaluate uses it.
         "env_kwargs": arguments,
     }
@@ -168,6 +172,8 @@ def train(config: TrainConfig) -> dict:
     if remaining > 0:
         callbacks = training_callbacks(config, out, config.timesteps, done, recipe.n_envs,
                                        env_kwargs)  # fmt: skip
+        if recipe.noise_schedule is not None:
+            callbacks.callbacks.append(noise_callback(recipe.noise_schedule, config.timesteps))
         model.learn(remaining, callback=callbacks, reset_num_timesteps=checkpoint is None)
         # The finished run is a checkpoint too: running the command again only evaluates.
         model.save(ckpt_dir / f"model_{model.num_timesteps}_steps.zip")

@@ -22,6 +22,7 @@ import gymnasium as gym
 import yaml
 
 from pour_gym.agents.training.moved_modules import importable_old_paths
+from pour_gym.agents.training.noise import NoiseSchedule
 from pour_gym.errors import InputError
 
 if TYPE_CHECKING:  # the residual module loads the envs (pybullet): only when a recipe has one
@@ -38,6 +39,7 @@ RECIPE_KEYS = {
     "demonstrations": "the scripted expert's episodes to start from (see DemoConfig)",
     "stochastic_eval": "evaluate and draw the curve with the policy's sampled actions (seeded)",
     "residual": "learn a correction to the scripted expert's actions (see ResidualConfig)",
+    "noise_schedule": "shrink the action noise over the run's end (see NoiseSchedule)",
 }
 RESIDUAL_WRAPPER = "pour_gym.agents.policies.residual.ExpertResidual"
 
@@ -93,7 +95,8 @@ class Recipe:
     Attributes:
         hyperparameters: the algorithm's constructor arguments.
         n_envs, policy, normalize, env_kwargs, env_wrapper, torch_threads, demonstrations,
-            stochastic_eval, residual: the training's own keys (:data:`RECIPE_KEYS`).
+            stochastic_eval, residual, noise_schedule: the training's own keys
+            (:data:`RECIPE_KEYS`).
     """
 
     hyperparameters: dict
@@ -106,6 +109,7 @@ class Recipe:
     demonstrations: DemoConfig | None = None
     stochastic_eval: bool = False
     residual: ResidualConfig | None = None
+    noise_schedule: NoiseSchedule | None = None
 
     def wrapper(self) -> Callable[[gym.Env], gym.Env] | None:
         """A function that wraps an env in :attr:`env_wrapper`'s wrappers (None if none).
@@ -192,6 +196,9 @@ def load_recipe(
         demonstrations=DemoConfig.from_recipe(demos) if demos else None,
         stochastic_eval=bool(own.get("stochastic_eval", False)),
         residual=residual,
+        noise_schedule=(
+            NoiseSchedule.from_recipe(own["noise_schedule"]) if own.get("noise_schedule") else None
+        ),
     )
     if recipe.residual is not None and recipe.demonstrations is not None:
         raise InputError("a recipe learns a residual on the expert or starts from its "

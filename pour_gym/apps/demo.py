@@ -122,7 +122,7 @@ def episode_gif(
     from tqdm import tqdm
 
     from pour_gym.agents.policies.rollout import rollout
-    from pour_gym.agents.policies.scripted import ScriptedPourPolicy, tilt_settings
+    from pour_gym.agents.policies.scripted import ScriptedPourPolicy, action_settings
     from pour_gym.report.video import write_video
 
     try:
@@ -137,7 +137,7 @@ def episode_gif(
         if target_amount is not None:
             options["target_amount"] = target_amount
         bar = tqdm(desc="episode", unit="step", file=sys.stderr)
-        policy = ScriptedPourPolicy(**tilt_settings(env_id))
+        policy = ScriptedPourPolicy(**action_settings(env_id))
         episode = rollout(env, policy, seed=seed, options=options, frames=True,
                           on_step=lambda _: bar.update() and False)  # fmt: skip
         bar.close()

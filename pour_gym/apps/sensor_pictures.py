@@ -29,7 +29,7 @@ def observe_scene(env_id: str, seed: int = 0) -> tuple[dict, str]:
     import gymnasium as gym
 
     import pour_gym  # noqa: F401  (registers the envs)
-    from pour_gym.agents.policies.scripted import ScriptedPourPolicy, tilt_settings
+    from pour_gym.agents.policies.scripted import ScriptedPourPolicy, action_settings
 
     env = gym.make(env_id, objects="red_cup", obs_mode=("features", *MODES))
     if "Tilt" in env_id:
@@ -42,7 +42,7 @@ def observe_scene(env_id: str, seed: int = 0) -> tuple[dict, str]:
         obs, info = env.reset(
             seed=seed, options={"source": "red_cup", "target": "broad_cup", "target_amount": 200}
         )
-        policy = ScriptedPourPolicy(amount=info["target_amount"], **tilt_settings(env_id))
+        policy = ScriptedPourPolicy(amount=info["target_amount"], **action_settings(env_id))
         for _ in range(250):
             obs, _, terminated, truncated, info = env.step(policy(obs["features"]))
             if info["poured"] >= 0.4 * info["target_amount"] or terminated or truncated:
