@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from pour_gym.envs.pour import FEATURE_NAMES, LIP_CONTROLS, TILT_CONTROLS
-from pour_gym.envs.rules import LIP_REACH, tilt_action
+from pour_gym.envs.rules import lip_action, tilt_action
 
 _I = {name: k for k, name in enumerate(FEATURE_NAMES)}
 # The policy's settings of the env's action form: its field -> the env's argument.
@@ -135,12 +135,12 @@ class ScriptedPourPolicy:
             goal = 90.0 * obs[_I["tilt"]] + action[3] * self.max_tilt_rate * self.dt
             action[3] = np.clip(tilt_action(goal, self.max_tilt), -1.0, 1.0)
         if self.lip_control == "target":
-            # The lip relative to the target's rim centre, in rim radii, one step on.
+            # Where one step at that velocity takes the lip, from the target's rim centre
+            # (m), at the lowest height (z_min: 0 here).
             r_t = obs[_I["target_rim_radius"]] * 0.1
-            lip = -np.array([obs[_I["lip_dx"]], obs[_I["lip_dy"]]], dtype=np.float64)
-            goal = lip + action[:2] * self.lip_speed * self.dt / r_t
-            action[:2] = np.clip(goal / LIP_REACH, -1.0, 1.0)
-            action[2] = -1.0
+            lip = -np.array([obs[_I["lip_dx"]], obs[_I["lip_dy"]]], dtype=np.float64) * r_t
+            goal = np.append(lip + action[:2] * self.lip_speed * self.dt, 0.0)
+            action[:3] = np.clip(lip_action(goal, np.zeros(3), r_t, 0.0), -1.0, 1.0)
         return action
 
     def _rate_action(self, o: np.ndarray) -> np.ndarray:
