@@ -183,8 +183,9 @@ class PourEnv(PourGymEnv):
       change of |poured - T| / T: pouring too much costs what pouring too little does,
       and pouring everything no longer costs more than never pouring);
       ``success_weight=2.0``. Arguments ``hide``, ``perception``, ``scan_seed``,
-      ``sensor_config`` and ``lip_control``, and the sensor observation modes (``"depth"``, ``"rgb"``,
-      ``"points"``, tuples of modes), added (both versions; the defaults change nothing).
+      ``sensor_config`` and ``lip_control``, and the sensor observation modes
+      (``"depth"``, ``"rgb"``, ``"points"``, tuples of modes), added (both versions; the
+      defaults change nothing).
     * v0 (this release): the fluid takes substeps by the CFL bound and puts back particles
       that tunnelled into a wall (``info["fluid_corrections"]``), so no action raises; an
       episode ends after a pour only when ``pour_threshold`` particles stayed out for
