@@ -493,11 +493,11 @@ class PourEnv(PourGymEnv):
         """
         lo = np.array([-0.1, -0.3, self.z_min])
         hi = np.array([0.45, 0.3, 0.5])
-        reach = self.max_speed * self.dt
         if self.lip_control == "velocity":
             move = a[:3] * self.max_speed * self.dt  # in this order: Pour-v0's bits
         else:
             # In the target's terms as the policy perceives it (its features' geometry).
+            reach = self.max_speed * self.dt
             gt = self.seen(self._names["target"]).geometry
             centre = self.target.to_world(gt.rim_center)
             move = np.clip(
