@@ -378,6 +378,32 @@ def test_a_sampling_policy_is_the_same_for_the_same_seed_and_leaves_torch_alone(
     assert not np.array_equal(actions[0][0], actions_of(sb3_policy(run, deterministic=True), 3)[0])
 
 
+def test_a_gsde_model_samples_with_noise_weights_drawn_as_in_training():
+    """A gSDE model's sampled actions draw its noise weights at each episode's start and
+    every sde_sample_freq steps (not once, at loading), from the episode's seed."""
+    import gymnasium as gym
+    from stable_baselines3 import PPO
+
+    from pour_gym.agents.policies.rollout import SampledPolicy
+
+    model = PPO("MlpPolicy", gym.make("Pendulum-v1"), use_sde=True, sde_sample_freq=4, seed=0)
+    policy = SampledPolicy(model, None)
+    drawn = []
+    reset_noise = model.policy.reset_noise
+    model.policy.reset_noise = lambda n=1: (drawn.append(n), reset_noise(n))[1]
+    obs = np.array([1.0, 0.0, 0.0], dtype=np.float32)
+
+    def episode(seed: int) -> np.ndarray:
+        policy.reset(seed)
+        return np.array([policy(obs) for _ in range(10)])
+
+    first, again, other = episode(3), episode(3), episode(4)
+    assert len(drawn) == 9  # steps 0, 4 and 8 of each episode
+    assert np.array_equal(first, again) and not np.allclose(first, other)
+    # The same observation, the same weights: steps 0-3 act alike, step 4 on new weights.
+    assert np.allclose(first[:4], first[0]) and not np.allclose(first[4], first[0])
+
+
 def test_keep_best_keeps_the_most_successful_then_the_closest_point(tmp_path):
     from pour_gym.agents.training import keep_if_best
     from pour_gym.envs import POUR, task_of

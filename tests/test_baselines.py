@@ -7,6 +7,7 @@ import shutil
 
 import numpy as np
 import pytest
+from scipy.stats import trim_mean
 
 from pour_gym.agents.evaluation.aggregate import mean_interval
 from pour_gym.agents.evaluation.baselines import baselines_report, training_kind
@@ -138,6 +139,56 @@ def test_a_family_run_is_a_row_of_its_own_scored_against_references_on_its_membe
     text = paths["report"].read_text()
     assert "| procedural:train | procedural:test (2) | 1 |" in text
     assert "| Pour-v1 | PPO (gSDE) | features | reward |" in text
+
+
+def test_a_family_run_scored_on_the_catalogue_too_gets_references_with_every_one_unseen(
+    tmp_path,
+):
+    """A family run's further evaluation (eval-catalogue.json) is a row of its own over all
+    the catalogue containers; the references, which count the red cup as trained on, are
+    given again with it unseen, so the row has its reference rows and aggregates."""
+    family = tmp_path / "runs" / "family_s0"
+    _run(family, 0, 1.0, algo="ppo")
+    config = json.loads((family / "config.json").read_text())
+    (family / "config.json").write_text(json.dumps({**config, "objects": "procedural:train"}))
+    (family / "eval.json").write_text(json.dumps({"episodes": 2, "rows": [
+        {"object": "procedural:test#0", "trained_on": False, "success": 1.0,
+         "amount_error": 2.0, "spilled": 0.0, "return": 1.0}]}))  # fmt: skip
+    names = ("red_cup", "broad_cup", "high_cup")
+
+    def evaluation(returns, trained, policy=None):
+        rows = [{"object": o, "trained_on": trained and o == "red_cup", "success": 1.0,
+                 "amount_error": 1.0, "spilled": 0.0, "return": r}
+                for o, r in zip(names, returns, strict=True)]  # fmt: skip
+        return {"env": "PourGym/Pour-v1", "episodes": 10, "rows": rows,
+                **({"policy": policy} if policy else {})}  # fmt: skip
+
+    (family / "eval-catalogue.json").write_text(json.dumps(evaluation((1.0, 1.0, 3.0), False)))
+    sampled = {**evaluation((2.0, 2.0, 2.0), False), "actions": "sampled"}
+    (family / "eval-catalogue-sampled.json").write_text(json.dumps(sampled))
+    refs = []
+    for policy, returns in (("scripted", (2.0, 2.0, 2.0)), ("random", (0.0, 0.0, 0.0))):
+        refs.append(tmp_path / f"{policy}.json")
+        refs[-1].write_text(json.dumps(evaluation(returns, False, policy)))
+    paths = {"summaries": tmp_path / "sum", "report": tmp_path / "b.md",
+             "curves": tmp_path / "b" / "curves.png"}  # fmt: skip
+    doc = baselines_report([tmp_path / "runs"], reference=refs, **paths)
+    rows = {(r["algo"], r["scored_on"], r["model"]): r for r in doc["rows"]}
+    cat = rows["ppo", "catalogue (3)", "last step"]
+    assert cat["unseen_success"]["mean"] == 1.0
+    # Normalised 0.5, 0.5, 1.5 (random 0, expert 2), the red cup among them.
+    assert cat["iqm"][0] == pytest.approx(trim_mean([0.5, 0.5, 1.5], 0.25))
+    assert cat["improvement"][0] == pytest.approx(1 / 3)
+    (by_samples,) = [r for r in doc["rows"] if r["model"] == "last step, sampled actions"]
+    assert by_samples["scored_on"] == "catalogue (3)" and by_samples["iqm"][0] == 1.0
+    scored = {(r["algo"], r["scored_on"]) for r in doc["rows"]}
+    assert {("scripted", "catalogue (3)"), ("random", "catalogue (3)"),
+            ("scripted", "catalogue (2)")} <= scored  # fmt: skip
+    assert (tmp_path / "sum" / "family_s0-catalogue.json").is_file()
+    bad = family / "eval-broken.json"
+    bad.write_text("{}")
+    with pytest.raises(InputError, match="pour-gym evaluate"):
+        baselines_report([tmp_path / "runs"], reference=refs, **paths)
 
 
 def test_intervals_and_kinds():

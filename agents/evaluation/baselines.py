@@ -40,6 +40,7 @@ from pour_gym.report.tables import markdown_table
 SUMMARIES = Path("docs/baselines/runs")
 REPORT = Path("docs/baselines.md")
 CURVES = Path("docs/baselines/curves.png")
+SAMPLED = ", sampled actions"  # a model kind's suffix: scored by its samples, not its mean
 METRICS = {
     "trained_success": "success, trained on",
     "unseen_success": "success, unseen",
@@ -70,7 +71,7 @@ def model_kind(config: dict) -> str:
     its mean action).
     """
     which = "best curve point" if config.get("keep_best") else "last step"
-    return which + (", sampled actions" if config.get("stochastic_eval") else "")
+    return which + (SAMPLED if config.get("stochastic_eval") else "")
 
 
 def _wall_seconds(run_dir: Path, result: dict) -> float | None:
@@ -159,6 +160,44 @@ def run_summary(run_dir: Path) -> dict:
     }
 
 
+def run_summaries(run_dir: Path) -> list[dict]:
+    """The summaries of one run: its own evaluation's, then one per further evaluation.
+
+    A further evaluation is an ``eval-<name>.json`` in the run directory, written by
+    ``pour-gym evaluate <run_dir> ... --json`` (for example a family run scored on the
+    catalogue too, or with ``--actions sampled``); its summary is the run's with that
+    evaluation's rows, named ``<run>-<name>``: another row of the report (other unseen
+    containers, or the model acting otherwise), the same training (curve, wall time).
+
+    Raises:
+        InputError: a folder that is not a finished run, or a further evaluation that is
+            not an evaluation's JSON.
+    """
+    main = run_summary(run_dir)
+    found = [main]
+    for path in sorted(Path(run_dir).glob("eval-*.json")):
+        try:
+            result = json.loads(path.read_text())
+            rows = result["rows"]
+            episodes = result["episodes"]
+        except (OSError, ValueError, KeyError, TypeError):
+            raise InputError(
+                f"{path} is not an evaluation: write it with `pour-gym evaluate {run_dir} "
+                "--objects all,real --episodes 10 --seed 10000 --json > "
+                f"{path}`"
+            ) from None
+        name = path.stem.removeprefix("eval-")
+        model = main["model"]
+        if result.get("actions"):  # evaluated by its mean or its samples, whatever in training
+            model = model.removesuffix(SAMPLED) + (
+                SAMPLED if result["actions"] == "sampled" else ""
+            )
+        found.append({**main, "run": f"{main['run']}-{name}", "model": model,
+                      "metrics": _metrics(rows), "eval_episodes": episodes,
+                      "eval_rows": rows})  # fmt: skip
+    return found
+
+
 # What a reference row's evaluation was of (``pour-gym evaluate <policy> --json``): its
 # run's name's start, its algorithm column and how it learnt.
 REFERENCES = {
@@ -210,6 +249,41 @@ def reference_summary(eval_path: Path, trained_on: tuple[str, ...] = ("red_cup",
         "eval_rows": rows,
         "curve": None,
     }
+
+
+def _unseen(summary: dict) -> frozenset[str]:
+    return frozenset(r["object"] for r in summary["eval_rows"] if not r["trained_on"])
+
+
+def rescored_references(found: list[dict]) -> list[dict]:
+    """References for runs scored on containers no reference counts as unseen.
+
+    A run over a family scored on the catalogue has all 12 containers unseen, where the
+    catalogue references count the red cup as trained on (the red-cup runs'). For such a
+    run, each reference of its env evaluated on the same containers with as many episodes
+    is given again with exactly the run's unseen containers unseen (named
+    ``<reference>-unseen-<n>``): a reference row beside it and its aggregates.
+    """
+    refs = [s for s in found if s["algo"] in REFERENCES]
+    have = {(s["env"], s["algo"], _unseen(s)) for s in refs}
+    made: dict[str, dict] = {}
+    for s in found:
+        unseen = _unseen(s)
+        if s["algo"] in REFERENCES or not unseen:
+            continue
+        for ref in refs:
+            objects = {r["object"] for r in ref["eval_rows"]}
+            if (
+                ref["env"] != s["env"]
+                or ref["eval_episodes"] != s["eval_episodes"]
+                or (ref["env"], ref["algo"], unseen) in have
+                or not unseen <= objects
+            ):
+                continue
+            rows = [{**r, "trained_on": r["object"] not in unseen} for r in ref["eval_rows"]]
+            name = f"{ref['run']}-unseen-{len(unseen)}"
+            made[name] = {**ref, "run": name, "metrics": _metrics(rows), "eval_rows": rows}
+    return list(made.values())
 
 
 def unseen_returns(summaries: list[dict], objects: list[str]) -> np.ndarray:
@@ -390,8 +464,8 @@ def baselines_report(
         if not dirs:
             raise InputError(f"{given} holds no finished train.py run (config.json, eval.json)")
         for d in dirs:
-            s = run_summary(d)
-            (summaries / f"{s['run']}.json").write_text(json.dumps(s, indent=1) + "\n")
+            for s in run_summaries(d):
+                (summaries / f"{s['run']}.json").write_text(json.dumps(s, indent=1) + "\n")
     given_refs = [reference] if isinstance(reference, str | Path) else list(reference or [])
     for ref in given_refs:
         s = reference_summary(Path(ref))
@@ -399,6 +473,7 @@ def baselines_report(
     found = [json.loads(p.read_text()) for p in sorted(summaries.glob("*.json"))]
     if not found:
         raise InputError(f"no run summaries in {summaries}: pass --runs DIR")
+    found += rescored_references(found)
     references: dict[tuple[str, str], dict[str, dict]] = {}
     for s in found:
         if s["algo"] in REFERENCES:
@@ -460,13 +535,13 @@ def baselines_report(
         "stratified-bootstrap interval over them in brackets (one seed: no interval). "
         "*Trained on*: what the run trained on, and the success on its evaluation episodes "
         "of those containers; *unseen*: the containers the run never trained on that its "
-        "unseen metrics are the mean over (the 11 catalogue containers but the red cup, or "
-        "the members of `procedural:test`), each as source and target, at seeds training "
-        "never used. Amount error is |poured - target| in particles (0.125 ml each). A "
-        "*hand-written (reference)* row is the scripted expert on the same containers and "
-        "seeds (it is not trained: its *trained on* success is the red cup's); a *uniform "
-        "random (reference)* row, actions drawn uniformly from the action space, seeded per "
-        "episode.",
+        "unseen metrics are the mean over (the 11 catalogue containers but the red cup, all "
+        "12 for a run over a family, or the members of `procedural:test`), each as source "
+        "and target, at seeds training never used. Amount error is |poured - target| in "
+        "particles (0.125 ml each). A *hand-written (reference)* row is the scripted "
+        "expert on the same containers and seeds (it is not trained: its *trained on* "
+        "success is the red cup's); a *uniform random (reference)* row, actions drawn "
+        "uniformly from the action space, seeded per episode.",
         "",
         "The last two metrics follow rliable (Agarwal et al., 2021; "
         "`pour_gym.agents.evaluation.aggregate`), over the seeds x unseen containers: *normalised "

@@ -178,7 +178,9 @@ class SampledPolicy:
 
     SB3 samples with torch's global generator; each step here draws in a forked copy of
     it, seeded from the episode's generator, so that an episode is the same for the same
-    seed and nothing else's random numbers change.
+    seed and nothing else's random numbers change. A model exploring by gSDE (``use_sde``)
+    samples as it did in training: its noise weights drawn at the episode's start and
+    every ``sde_sample_freq`` steps (SB3's rollouts), not left at whatever loading drew.
 
     Args:
         predictor: the SB3 algorithm.
@@ -189,10 +191,17 @@ class SampledPolicy:
         self.predictor = predictor
         self.normalise = normalise
         self.rng = np.random.default_rng(0)
+        self.steps = 0
+        self.sde_every = (
+            getattr(predictor, "sde_sample_freq", -1)
+            if getattr(predictor, "use_sde", False)
+            else None
+        )
 
     def reset(self, seed: int | None = None) -> None:
         """Start an episode: its actions' noise from ``seed``."""
         self.rng = np.random.default_rng(seed)
+        self.steps = 0
 
     def __call__(self, obs: np.ndarray) -> np.ndarray:
         """A sampled action for an observation."""
@@ -201,7 +210,11 @@ class SampledPolicy:
         x = self.normalise(obs) if self.normalise is not None else obs
         with torch.random.fork_rng(devices=[]):
             torch.manual_seed(int(self.rng.integers(2**62)))
+            every = self.sde_every
+            if every is not None and (self.steps == 0 or (every > 0 and self.steps % every == 0)):
+                self.predictor.policy.reset_noise(1)
             action, _ = self.predictor.predict(x, deterministic=False)
+        self.steps += 1
         return action
 
 

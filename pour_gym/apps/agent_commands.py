@@ -103,6 +103,8 @@ def cmd_evaluate(args: argparse.Namespace) -> Output:
         target_objects=expand_containers(args.target_objects) if args.target_objects else None,
     )
     result["policy"] = args.policy  # what a report's reference row says it was
+    if args.actions:  # how a model acted, when asked: a report's row of its own
+        result["actions"] = args.actions
     return (result, lambda: evaluation_table(result))
 
 
