@@ -378,6 +378,31 @@ def test_a_sampling_policy_is_the_same_for_the_same_seed_and_leaves_torch_alone(
     assert not np.array_equal(actions[0][0], actions_of(sb3_policy(run, deterministic=True), 3)[0])
 
 
+def test_the_shipped_family_policy_acts_by_its_mean_and_names_no_container_trained_on():
+    """pour-v1-family-sde: trained over procedural:train, it loads as its mean action (the
+    same actions for the same episode) and counts no catalogue container as trained on."""
+    import gymnasium as gym
+
+    from pour_gym.agents.evaluation.evaluate import load_policy
+    from pour_gym.agents.policies.rollout import SampledPolicy, rollout
+
+    loaded = load_policy("pour-v1-family-sde")
+    assert not isinstance(loaded.policy, SampledPolicy) and loaded.env_id == "PourGym/Pour-v1"
+    assert len(loaded.trained_on) == 200 and "red_cup" not in loaded.trained_on
+    env = gym.make(loaded.env_id, objects="red_cup", source_particles=300,
+                   amount_range=(40, 80), max_episode_steps=20, **loaded.env_kwargs)  # fmt: skip
+
+    def actions(seed: int) -> np.ndarray:
+        taken = []
+        rollout(env, loaded.policy, seed=seed, on_step=lambda step: taken.append(step.action))
+        return np.array(taken)
+
+    first = actions(5)
+    assert len(first) == 20 and np.all(np.abs(first) <= 1.0)
+    assert np.array_equal(first, actions(5))
+    env.close()
+
+
 def test_a_gsde_model_samples_with_noise_weights_drawn_as_in_training():
     """A gSDE model's sampled actions draw its noise weights at each episode's start and
     every sde_sample_freq steps (not once, at loading), from the episode's seed."""
