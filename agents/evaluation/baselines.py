@@ -160,6 +160,25 @@ def run_summary(run_dir: Path) -> dict:
     }
 
 
+def read_evaluation(path: Path, hint: str) -> dict:
+    """An evaluation's JSON (``pour-gym evaluate ... --json``): its env, episodes and rows.
+
+    Raises:
+        InputError: a file that is not one, named, with ``hint`` (how to write one).
+    """
+    try:
+        result = json.loads(Path(path).read_text())
+        if not (
+            isinstance(result["env"], str)
+            and isinstance(result["episodes"], int)
+            and all(isinstance(r, dict) and "object" in r for r in result["rows"])
+        ):
+            raise TypeError
+    except (OSError, ValueError, KeyError, TypeError):
+        raise InputError(f"{path} is not an evaluation: {hint}") from None
+    return result
+
+
 def run_summaries(run_dir: Path) -> list[dict]:
     """The summaries of one run: its own evaluation's, then one per further evaluation.
 
@@ -176,16 +195,12 @@ def run_summaries(run_dir: Path) -> list[dict]:
     main = run_summary(run_dir)
     found = [main]
     for path in sorted(Path(run_dir).glob("eval-*.json")):
-        try:
-            result = json.loads(path.read_text())
-            rows = result["rows"]
-            episodes = result["episodes"]
-        except (OSError, ValueError, KeyError, TypeError):
-            raise InputError(
-                f"{path} is not an evaluation: write it with `pour-gym evaluate {run_dir} "
-                "--objects all,real --episodes 10 --seed 10000 --json > "
-                f"{path}`"
-            ) from None
+        result = read_evaluation(
+            path,
+            f"write it with `pour-gym evaluate {run_dir} --objects all,real --episodes 10 "
+            f"--seed 10000 --json > {path}`",
+        )
+        rows, episodes = result["rows"], result["episodes"]
         name = path.stem.removeprefix("eval-")
         model = main["model"]
         if result.get("actions"):  # evaluated by its mean or its samples, whatever in training
@@ -217,17 +232,19 @@ def reference_summary(eval_path: Path, trained_on: tuple[str, ...] = ("red_cup",
     Raises:
         InputError: a file that is not an evaluation's JSON.
     """
-    eval_path = Path(eval_path)
-    try:
-        result = json.loads(eval_path.read_text())
-        rows = [{**r, "trained_on": r["object"] in trained_on} for r in result["rows"]]
-        prefix, algo, kind = REFERENCES[result.get("policy", "scripted")]
-    except (OSError, ValueError, KeyError, TypeError):
+    result = read_evaluation(
+        eval_path,
+        "write one with `pour-gym evaluate scripted --objects all,real --episodes 10 "
+        "--seed 10000 --json` (or random)",
+    )
+    policy = result.get("policy", "scripted")
+    if policy not in REFERENCES:
         raise InputError(
-            f"{eval_path} is not an evaluation: write one with "
-            "`pour-gym evaluate scripted --objects all,real --episodes 10 --seed 10000 --json` "
-            "(or random)"
-        ) from None
+            f"{eval_path} evaluates {policy!r}: a reference row is the scripted expert's or "
+            "the random policy's (pour-gym evaluate scripted|random --json)"
+        )
+    prefix, algo, kind = REFERENCES[policy]
+    rows = [{**r, "trained_on": r["object"] in trained_on} for r in result["rows"]]
     env = result["env"]
     where = scored_on(rows)
     # One reference per env and set of containers: the catalogue's keeps its old name.
