@@ -26,6 +26,7 @@ from pour_gym.assets import (
 )
 from pour_gym.envs.containers import ContainerStore, release
 from pour_gym.envs.observations import VECTOR_MODES, parse_obs_mode
+from pour_gym.errors import InputError
 from pour_gym.fluid import precompile
 from pour_gym.fluid.pbf import PBFConfig, default_threads
 from pour_gym.fluid.sdf import SignedDistanceField
@@ -91,13 +92,13 @@ class PourGymEnv(gym.Env, EzPickle):
         sensor_config: SensorConfig | dict | None = None,
     ):
         if fluid not in FLUIDS:
-            raise ValueError(f"fluid must be one of {FLUIDS}, not {fluid!r}")
+            raise InputError(f"fluid must be one of {FLUIDS}, not {fluid!r}")
         if render_mode is not None and render_mode not in RENDER_MODES:
-            raise ValueError(f"render_mode must be one of {RENDER_MODES} or None")
+            raise InputError(f"render_mode must be one of {RENDER_MODES} or None")
         if num_threads is not None and int(num_threads) < 1:
-            raise ValueError(f"num_threads must be at least 1 (or None), not {num_threads}")
+            raise InputError(f"num_threads must be at least 1 (or None), not {num_threads}")
         if perception not in PERCEPTIONS:
-            raise ValueError(f"perception must be one of {PERCEPTIONS}, not {perception!r}")
+            raise InputError(f"perception must be one of {PERCEPTIONS}, not {perception!r}")
         if isinstance(fluid_config, dict):
             fluid_config = PBFConfig(**fluid_config)
         self.reward_weights: dict[str, float] = {}
@@ -139,7 +140,7 @@ class PourGymEnv(gym.Env, EzPickle):
         """
         bad = {k: w for k, w in weights.items() if not np.isfinite(w)}
         if bad:
-            raise ValueError(f"reward weights must be finite numbers, got {bad}")
+            raise InputError(f"reward weights must be finite numbers, got {bad}")
         self.reward_weights.update({k: float(w) for k, w in weights.items()})
 
     def _setup_observations(self, obs_mode) -> None:
@@ -174,7 +175,7 @@ class PourGymEnv(gym.Env, EzPickle):
         options = dict(options or {})
         unknown = set(options) - allowed
         if unknown:
-            raise ValueError(
+            raise InputError(
                 f"unknown reset options {sorted(unknown)}; this environment takes {sorted(allowed)}"
             )
         return options
@@ -297,14 +298,14 @@ class PourGymEnv(gym.Env, EzPickle):
         try:
             a = np.asarray(action, dtype=np.float64)
         except (TypeError, ValueError):
-            raise ValueError(f"an action is {shape} numbers, got {action!r}") from None
+            raise InputError(f"an action is {shape} numbers, got {action!r}") from None
         if a.size != int(np.prod(shape)):
-            raise ValueError(f"an action has shape {shape}, got {a.shape}: {a.tolist()}")
+            raise InputError(f"an action has shape {shape}, got {a.shape}: {a.tolist()}")
         a = a.reshape(shape)
         if not np.isfinite(a).all():
-            raise ValueError(f"the action contains NaN or infinity: {a.tolist()}")
+            raise InputError(f"the action contains NaN or infinity: {a.tolist()}")
         if np.any(a < -1.0 - 1e-6) or np.any(a > 1.0 + 1e-6):
-            raise ValueError(f"actions lie in [-1, 1]; got {a.tolist()}")
+            raise InputError(f"actions lie in [-1, 1]; got {a.tolist()}")
         return np.clip(a, -1.0, 1.0)
 
     def _reward(self, terms: dict[str, float]) -> tuple[float, dict[str, float]]:

@@ -18,6 +18,8 @@ from collections import OrderedDict
 from collections.abc import Callable
 from typing import TypeVar
 
+from pour_gym.errors import InputError
+
 T = TypeVar("T")
 
 # Containers an environment keeps loaded by default: an episode uses two, and a catalogue
@@ -40,7 +42,7 @@ class ContainerStore:
 
     def __init__(self, capacity: int = KEPT):
         if int(capacity) < 1:
-            raise ValueError(f"a container store keeps at least one container, not {capacity}")
+            raise InputError(f"a container store keeps at least one container, not {capacity}")
         self.capacity = int(capacity)
         self._entries: OrderedDict[str, dict[str, object]] = OrderedDict()
         self._lock = threading.Lock()

@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING, ClassVar
 import numpy as np
 from gymnasium import spaces
 
+from pour_gym.errors import InputError
 from pour_gym.sim import Camera
 from pour_gym.sim.panda import (
     ARM_JOINTS,
@@ -313,7 +314,7 @@ class PandaHolder(Holder):
         self, control: str = "ee", joint_limit_weight: float = 0.1, collision_weight: float = 1.0
     ):
         if control not in PANDA_CONTROLS:
-            raise ValueError(f"control must be one of {PANDA_CONTROLS}, not {control!r}")
+            raise InputError(f"control must be one of {PANDA_CONTROLS}, not {control!r}")
         self.control = control
         self.weights = {"joint_limit": joint_limit_weight, "collision": collision_weight}
         self.obs_names = JOINT_NAMES
@@ -525,15 +526,15 @@ def make_holder(name: str, **kwargs) -> Holder:
     """A holder by name, with its arguments.
 
     Raises:
-        ValueError: an unknown holder, or arguments it does not take (named).
+        InputError: an unknown holder, or arguments it does not take (named).
     """
     if name not in HOLDERS:
-        raise ValueError(f"holder must be one of {', '.join(HOLDERS)}, not {name!r}")
+        raise InputError(f"holder must be one of {', '.join(HOLDERS)}, not {name!r}")
     cls = HOLDERS[name]
     takes = set(inspect.signature(cls).parameters)
     unknown = sorted(set(kwargs) - takes)
     if unknown:
-        raise ValueError(
+        raise InputError(
             f"unknown argument(s) {', '.join(unknown)}: neither the pouring task's nor the "
             f"{name!r} holder's ({cls.__name__} takes {', '.join(sorted(takes)) or 'none'})"
         )

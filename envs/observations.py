@@ -5,6 +5,8 @@ A light module (no simulator imported), so that command lines can offer the mode
 
 from __future__ import annotations
 
+from pour_gym.errors import InputError
+
 # Vectors: the warped high-level features, or raw state.
 VECTOR_MODES = ("features", "state")
 # What a head camera gives (pour_gym.sim.sensors): depth and colour images, a point cloud.
@@ -26,13 +28,13 @@ def parse_obs_mode(obs_mode) -> tuple[str, ...]:
     modes = (obs_mode,) if isinstance(obs_mode, str) else tuple(obs_mode)
     unknown = [m for m in modes if m not in OBS_MODES]
     if unknown or not modes:
-        raise ValueError(
+        raise InputError(
             f"obs_mode must be one of {OBS_MODES} or a tuple of them, not {obs_mode!r}"
         )
     if len(set(modes)) != len(modes):
-        raise ValueError(f"obs_mode names a mode twice: {obs_mode!r}")
+        raise InputError(f"obs_mode names a mode twice: {obs_mode!r}")
     if sum(m in VECTOR_MODES for m in modes) > 1:
-        raise ValueError(
+        raise InputError(
             f"obs_mode takes one of {VECTOR_MODES} at a time (with any sensors), not {obs_mode!r}"
         )
     return modes

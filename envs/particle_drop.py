@@ -9,6 +9,7 @@ from gymnasium.utils import EzPickle
 from pour_gym.envs.base import PourGymEnv
 from pour_gym.envs.observations import parse_obs_mode, vector_mode
 from pour_gym.envs.task import DROP
+from pour_gym.errors import InputError
 from pour_gym.features import fill_fraction, relative_distance_height
 from pour_gym.fluid.pbf import PBFConfig
 from pour_gym.sim import Camera, Container
@@ -135,11 +136,11 @@ class ParticleDropEnv(PourGymEnv):
         )
         parse_obs_mode(obs_mode)  # a bad mode is named before any other argument
         if blob < 1:
-            raise ValueError(f"blob must be at least 1 particle, not {blob}")
+            raise InputError(f"blob must be at least 1 particle, not {blob}")
         if not 0.0 <= fill_range[0] <= fill_range[1] <= 0.8:
-            raise ValueError(f"fill_range must lie within [0, 0.8], not {fill_range}")
+            raise InputError(f"fill_range must lie within [0, 0.8], not {fill_range}")
         if not drop_time > 0:
-            raise ValueError(f"drop_time must be positive, not {drop_time}")
+            raise InputError(f"drop_time must be positive, not {drop_time}")
         self.containers = self._containers(objects)
         self.blob = int(blob)
         self.fill_range = (float(fill_range[0]), float(fill_range[1]))
@@ -167,7 +168,7 @@ class ParticleDropEnv(PourGymEnv):
         if fill is None:
             fill = rng.uniform(*self.fill_range)
         if not 0.0 <= float(fill) <= 0.8:
-            raise ValueError(f"fill is a fraction of the volume in [0, 0.8], not {fill}")
+            raise InputError(f"fill is a fraction of the volume in [0, 0.8], not {fill}")
         self.fill = float(fill)
         spawn = options.get("spawn")
         if spawn is None:
@@ -178,7 +179,7 @@ class ParticleDropEnv(PourGymEnv):
             )
         spawn = np.asarray(spawn, dtype=np.float64)
         if spawn.shape != (3,) or not np.isfinite(spawn).all():
-            raise ValueError(f"spawn is 3 finite numbers (m, container frame), not {spawn!r}")
+            raise InputError(f"spawn is 3 finite numbers (m, container frame), not {spawn!r}")
         self.spawn = spawn
         s = self.fluid_config.spacing
         # A compact blob: the lattice points nearest the spawn point.

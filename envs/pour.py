@@ -25,6 +25,7 @@ from pour_gym.envs.rules import (
     tolerance,
 )
 from pour_gym.envs.task import POUR
+from pour_gym.errors import InputError
 from pour_gym.fluid.pbf import PBFConfig
 from pour_gym.sim import Camera, Container
 from pour_gym.sim.rotations import about_z
@@ -311,24 +312,24 @@ class PourEnv(PourGymEnv):
         )
         modes = parse_obs_mode(obs_mode)
         if source_particles is not None and source_particles < 100:
-            raise ValueError(f"source_particles must be at least 100, not {source_particles}")
+            raise InputError(f"source_particles must be at least 100, not {source_particles}")
         lo, hi = amount_range
         if not 1 <= lo <= hi:
-            raise ValueError(f"amount_range must be (low, high) with 1 <= low <= high: {lo, hi}")
+            raise InputError(f"amount_range must be (low, high) with 1 <= low <= high: {lo, hi}")
         if pour_threshold < 1 or pour_steps < 1:
-            raise ValueError(
+            raise InputError(
                 f"pour_threshold and pour_steps must be at least 1, not {pour_threshold}, "
                 f"{pour_steps}"
             )
         for name, value in (("max_speed", max_speed), ("max_tilt_rate", max_tilt_rate)):
             if not value > 0:
-                raise ValueError(f"{name} must be positive, not {value}")
+                raise InputError(f"{name} must be positive, not {value}")
         if not 0 < max_tilt <= 180:
-            raise ValueError(f"max_tilt must be in (0, 180] degrees, not {max_tilt}")
+            raise InputError(f"max_tilt must be in (0, 180] degrees, not {max_tilt}")
         if tilt_control not in TILT_CONTROLS:
-            raise ValueError(f"tilt_control must be one of {TILT_CONTROLS}, not {tilt_control!r}")
+            raise InputError(f"tilt_control must be one of {TILT_CONTROLS}, not {tilt_control!r}")
         if lip_control not in LIP_CONTROLS:
-            raise ValueError(f"lip_control must be one of {LIP_CONTROLS}, not {lip_control!r}")
+            raise InputError(f"lip_control must be one of {LIP_CONTROLS}, not {lip_control!r}")
         self.sources = self._containers(source_objects if source_objects is not None else objects)
         self.targets = self._containers(target_objects if target_objects is not None else objects)
         if perception == "scan":
@@ -359,7 +360,7 @@ class PourEnv(PourGymEnv):
         hide = (hide,) if isinstance(hide, str) else tuple(hide)
         unknown = sorted(set(hide) - set(self.obs_names))
         if unknown:
-            raise ValueError(
+            raise InputError(
                 f"hide names observation entries; {obs_mode!r} has no {unknown} (it has "
                 f"{', '.join(self.obs_names) or 'no vector entries'})"
             )
@@ -415,7 +416,7 @@ class PourEnv(PourGymEnv):
         margin = options.get("fill_margin")
         if margin is not None:
             if fixed_fill is not None or int(margin) < 0:
-                raise ValueError(
+                raise InputError(
                     "the reset option fill_margin must be a count of particles >= 0, and only "
                     f"applies when source_particles is None (got {margin} with "
                     f"source_particles={fixed_fill})"
@@ -424,7 +425,7 @@ class PourEnv(PourGymEnv):
         fill = fixed_fill if fixed_fill is not None else amount + FILL_MARGIN
         self.fill = min(fill, capacity_s)
         if not 1 <= amount <= self.fill:
-            raise ValueError(f"target_amount must be in [1, {self.fill}] particles, not {amount}")
+            raise InputError(f"target_amount must be in [1, {self.fill}] particles, not {amount}")
         self.target_amount = amount
         self.tolerance = tolerance(self.target_amount)
         self.world.fill(self.source, particles=self.fill)
@@ -568,7 +569,7 @@ class PourEnv(PourGymEnv):
         a state agent.
         """
         if obs_mode not in VECTOR_MODES:
-            raise ValueError(f"observe() gives one of {VECTOR_MODES}, not {obs_mode!r}")
+            raise InputError(f"observe() gives one of {VECTOR_MODES}, not {obs_mode!r}")
         c = self._counts
         # What the policy knows of the containers (perceived, with perception="scan"); the
         # counts and the reward come from the physics, which has the true meshes.

@@ -15,6 +15,8 @@ from typing import TYPE_CHECKING
 import gymnasium as gym
 from gymnasium.envs.registration import load_env_creator, register, registry
 
+from pour_gym.errors import InputError
+
 if TYPE_CHECKING:
     from pour_gym.envs.task import Task
 
@@ -135,7 +137,7 @@ def entry(env_id: str) -> EnvEntry:
     for e in ENVS:
         if e.id == name:
             return e
-    raise ValueError(f"unknown environment {env_id!r}; pour-gym has {', '.join(ENV_IDS)}")
+    raise InputError(f"unknown environment {env_id!r}; pour-gym has {', '.join(ENV_IDS)}")
 
 
 def task_of(env) -> Task:
@@ -150,7 +152,7 @@ def task_of(env) -> Task:
         creator = getattr(env, "unwrapped", env)
     task = getattr(creator, "task", None)
     if task is None:
-        raise ValueError(f"{env!r} is not a pour-gym environment (it has no task)")
+        raise InputError(f"{env!r} is not a pour-gym environment (it has no task)")
     return task
 
 

@@ -11,6 +11,7 @@ from gymnasium.utils import EzPickle
 from pour_gym.envs.base import PourGymEnv
 from pour_gym.envs.observations import parse_obs_mode, vector_mode
 from pour_gym.envs.task import TILT
+from pour_gym.errors import InputError
 from pour_gym.features import cavity_points, fluid_features, mouth_volume
 from pour_gym.fluid.pbf import PBFConfig
 from pour_gym.sim import Camera
@@ -149,11 +150,11 @@ class TiltPourEnv(PourGymEnv):
         )
         parse_obs_mode(obs_mode)  # a bad mode is named before any other argument
         if label_mode not in LABEL_MODES:
-            raise ValueError(f"label_mode must be one of {LABEL_MODES}, not {label_mode!r}")
+            raise InputError(f"label_mode must be one of {LABEL_MODES}, not {label_mode!r}")
         if not 0.0 < fill_range[0] <= fill_range[1] <= 1.0:
-            raise ValueError(f"fill_range must lie within (0, 1], not {fill_range}")
+            raise InputError(f"fill_range must lie within (0, 1], not {fill_range}")
         if not 0.0 <= tilt_range[0] <= tilt_range[1] <= 180.0:
-            raise ValueError(f"tilt_range must lie within [0, 180] degrees, not {tilt_range}")
+            raise InputError(f"tilt_range must lie within [0, 180] degrees, not {tilt_range}")
         self.containers = self._containers(objects)
         self.label_mode = label_mode
         self.fill_range = (float(fill_range[0]), float(fill_range[1]))
@@ -182,11 +183,11 @@ class TiltPourEnv(PourGymEnv):
         fill = options.get("fill")
         fill = rng.uniform(*self.fill_range) if fill is None else float(fill)
         if not 0.0 < fill <= 1.0:
-            raise ValueError(f"fill is a fraction of the volume in (0, 1], not {fill}")
+            raise InputError(f"fill is a fraction of the volume in (0, 1], not {fill}")
         tilt = options.get("tilt_deg")
         tilt = rng.uniform(*self.tilt_range) if tilt is None else float(tilt)
         if not (np.isfinite(tilt) and 0.0 <= tilt <= 180.0):
-            raise ValueError(f"tilt_deg must be in [0, 180], not {tilt}")
+            raise InputError(f"tilt_deg must be in [0, 180], not {tilt}")
         self.fill, self.tilt = fill, tilt
         lattice = self._lattices[self.name]
         g = asset.geometry

@@ -35,6 +35,7 @@ from gymnasium.vector.utils import batch_space, create_empty_array, iterate
 
 from pour_gym.envs.containers import KEPT, ContainerStore
 from pour_gym.envs.registry import ENVS, vector_creator_name
+from pour_gym.errors import InputError
 from pour_gym.io.numba_threads import usable_cores
 
 
@@ -51,7 +52,7 @@ def autoreset(mode: str | AutoresetMode) -> AutoresetMode:
         if words in (m.value.lower(), m.name.replace("_", "").lower()):
             return m
     names = ", ".join(m.value for m in AutoresetMode)
-    raise ValueError(f"autoreset_mode must be one of {names} (or next-step, ...), not {mode!r}")
+    raise InputError(f"autoreset_mode must be one of {names} (or next-step, ...), not {mode!r}")
 
 
 # One env's result of a vector step: observation, reward, terminated, truncated, info, and
@@ -92,9 +93,9 @@ class PourVectorEnv(VectorEnv):
         **kwargs,
     ):
         if int(num_envs) < 1:
-            raise ValueError(f"num_envs must be at least 1, not {num_envs}")
+            raise InputError(f"num_envs must be at least 1, not {num_envs}")
         if num_threads is not None and int(num_threads) < 1:
-            raise ValueError(f"num_threads must be at least 1 (or None), not {num_threads}")
+            raise InputError(f"num_threads must be at least 1 (or None), not {num_threads}")
         super().__init__()
         self.env_id = env_id
         self.num_envs = int(num_envs)
@@ -152,7 +153,7 @@ class PourVectorEnv(VectorEnv):
         else:
             seeds = list(seed)
             if len(seeds) != self.num_envs:
-                raise ValueError(
+                raise InputError(
                     f"give one seed per env ({self.num_envs}), not {len(seeds)}: {seeds}"
                 )
         n = self.num_envs
@@ -161,7 +162,7 @@ class PourVectorEnv(VectorEnv):
         if mask is None:
             mask = np.ones(self.num_envs, dtype=bool)
         elif not (isinstance(mask, np.ndarray) and mask.dtype == np.bool_) or len(mask) != n:
-            raise ValueError(f"options['reset_mask'] is a bool array of shape ({self.num_envs},)")
+            raise InputError(f"options['reset_mask'] is a bool array of shape ({self.num_envs},)")
         chosen = [i for i in range(n) if mask[i]]
         done = self.reset_envs(chosen, [seeds[i] for i in chosen], [options] * len(chosen))
         infos: dict = {}
@@ -212,7 +213,7 @@ class PourVectorEnv(VectorEnv):
         self._check_open()
         acts = list(iterate(self.action_space, actions))
         if len(acts) != self.num_envs:
-            raise ValueError(f"give one action per env ({self.num_envs}), not {len(acts)}")
+            raise InputError(f"give one action per env ({self.num_envs}), not {len(acts)}")
         if self.autoreset_mode == AutoresetMode.DISABLED and self._ended.any():
             ended = np.flatnonzero(self._ended).tolist()
             raise RuntimeError(
@@ -293,7 +294,7 @@ class PourVectorEnv(VectorEnv):
         if not isinstance(values, list | tuple):
             values = [values] * self.num_envs
         if len(values) != self.num_envs:
-            raise ValueError(f"give one value per env ({self.num_envs}), not {len(values)}")
+            raise InputError(f"give one value per env ({self.num_envs}), not {len(values)}")
         for env, value in zip(self.envs, values, strict=True):
             env.set_wrapper_attr(name, value)
 

@@ -106,7 +106,17 @@ def test_evaluate_runs_a_searched_policy_and_rejects_other_json(tmp_path, cli):
     policy = ScriptedPourPolicy(**found["best"])
     here = evaluate_policy(policy, "PourGym/Pour-v0", ["red_cup"], episodes=1, seed=10_000,
                            trained_on=found["sources"])  # fmt: skip
-    assert here["rows"] == doc["rows"]
+    assert here["rows"] == doc["rows"] and doc["seed"] == 10_000
+    # --env-kwargs reaches the env (a larger spill weight costs more per particle spilled;
+    # the expert spills nothing, so only the record changes), and a key no env takes is an
+    # error that names it, without a traceback.
+    weighted = json.loads(cli("evaluate", searched, "--objects", "red_cup", "--episodes", "1",
+                              "--env-kwargs", '{"spill_weight": 10}', "--json").stdout)  # fmt: skip
+    assert weighted["env_kwargs"] == {"spill_weight": 10}
+    proc = cli("evaluate", searched, "--objects", "red_cup", "--env-kwargs", '{"spil": 1}',
+               check=False)  # fmt: skip
+    assert proc.returncode == 2 and "unknown argument(s) spil" in proc.stderr
+    assert "Traceback" not in proc.stderr
     bad = tmp_path / "not_a_search.json"
     bad.write_text("{}")
     proc = cli("evaluate", str(bad), "--objects", "red_cup", check=False)

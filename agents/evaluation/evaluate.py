@@ -133,7 +133,7 @@ def evaluate_policy(
         target_objects: a pouring task: targets of a matrix of rows (default: ``objects``).
 
     Returns:
-        ``{"env", "episodes", "rows": [{"object", "source", "target", "trained_on", and
+        ``{"env", "episodes", "seed", "rows": [{"object", "source", "target", "trained_on", and
         the task's metrics and diagnostics (:class:`pour_gym.envs.task.Task`: "success",
         "return", and for a pouring task "amount_error", "spilled", "corrections"), each
         the mean over the row's episodes, and for a pouring task the share of its
@@ -185,7 +185,7 @@ def evaluate_policy(
     unseen = [r for r in rows if not r["trained_on"]]
     if unseen and len(unseen) < len(rows):
         mean["success_unseen"] = float(np.mean([r["success"] for r in unseen]))
-    return {"env": env_id, "episodes": episodes, "rows": rows, "mean": mean}
+    return {"env": env_id, "episodes": episodes, "seed": seed, "rows": rows, "mean": mean}
 
 
 def evaluation_table(result: dict) -> str:

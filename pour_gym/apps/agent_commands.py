@@ -89,7 +89,8 @@ def cmd_evaluate(args: argparse.Namespace) -> Output:
     from pour_gym.assets import expand_containers
 
     loaded = load_policy(args.policy, args.env, args.algo, args.actions)
-    policy, env_kwargs, trained = loaded.policy, loaded.env_kwargs, loaded.trained_on
+    policy, trained = loaded.policy, loaded.trained_on
+    env_kwargs = {**loaded.env_kwargs, **args.env_kwargs}  # the user's win over the model's
     args.env = loaded.env_id
     result = evaluate_policy(
         policy,
@@ -105,6 +106,8 @@ def cmd_evaluate(args: argparse.Namespace) -> Output:
     result["policy"] = args.policy  # what a report's reference row says it was
     if args.actions:  # how a model acted, when asked: a report's row of its own
         result["actions"] = args.actions
+    if args.env_kwargs:  # evaluated in other conditions than the model's own
+        result["env_kwargs"] = args.env_kwargs
     return (result, lambda: evaluation_table(result))
 
 

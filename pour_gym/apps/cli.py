@@ -255,6 +255,13 @@ def build_parser() -> argparse.ArgumentParser:
         help="a model's mean action or its sampled ones (seeded per episode); default: as "
         "its run scored it (stochastic_eval in its config.json)",
     )
+    p.add_argument(
+        "--env-kwargs",
+        type=json_object,
+        default={},
+        help="JSON of more environment arguments, over the model's own (its config.json's), "
+        "e.g. '{\"spill_weight\": 10}' or '{\"holder\": \"panda\"}'",
+    )
 
     p = add(
         "search",
