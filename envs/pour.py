@@ -18,8 +18,10 @@ from pour_gym.envs.pour_observation import (
 )
 from pour_gym.envs.rules import (
     amount_terms,
+    episode_amounts,
     episode_end,
     lip_goal,
+    pour_counts,
     shaping_potentials,
     tilt_goal,
     tolerance,
@@ -31,9 +33,6 @@ from pour_gym.sim import Camera, Container
 from pour_gym.sim.rotations import about_z
 from pour_gym.sim.sensors import Sensor, SensorConfig
 
-RESTING_SPEED = 0.05  # m/s: a particle in no container moving slower has spilled
-# The fill left over when the fill is sized to the task, particles.
-FILL_MARGIN = 100
 TILT_CONTROLS = ("rate", "angle")
 LIP_CONTROLS = ("velocity", "target")
 
@@ -400,33 +399,11 @@ class PourEnv(PourGymEnv):
         reached = self.holder.hold(scene, self.lip, 0.0)
         self.lip, self.tilt = reached.lip, reached.tilt
         v = self.world.particle_volume
-        capacity_s = int(0.6 * gs.cavity_volume / v)
-        capacity_t = int(0.6 * gt.cavity_volume / v)
-        fixed_fill = self.source_particles
-        if fixed_fill is None:  # sized to the task: T + FILL_MARGIN
-            most = capacity_s - FILL_MARGIN
-        else:
-            most = min(fixed_fill, capacity_s) - 50
-        hi = max(1, min(self.amount_range[1], most, capacity_t))
-        lo = min(self.amount_range[0], hi)
-        amount = options.get("target_amount")
-        if amount is None:
-            amount = int(rng.integers(lo, hi + 1))
-        amount = int(amount)
-        margin = options.get("fill_margin")
-        if margin is not None:
-            if fixed_fill is not None or int(margin) < 0:
-                raise InputError(
-                    "the reset option fill_margin must be a count of particles >= 0, and only "
-                    f"applies when source_particles is None (got {margin} with "
-                    f"source_particles={fixed_fill})"
-                )
-            fixed_fill = amount + int(margin)
-        fill = fixed_fill if fixed_fill is not None else amount + FILL_MARGIN
-        self.fill = min(fill, capacity_s)
-        if not 1 <= amount <= self.fill:
-            raise InputError(f"target_amount must be in [1, {self.fill}] particles, not {amount}")
-        self.target_amount = amount
+        self.fill, self.target_amount = episode_amounts(
+            int(0.6 * gs.cavity_volume / v), int(0.6 * gt.cavity_volume / v),
+            self.amount_range, self.source_particles, rng,
+            options.get("target_amount"), options.get("fill_margin"),
+        )  # fmt: skip
         self.tolerance = tolerance(self.target_amount)
         self.world.fill(self.source, particles=self.fill)
         # The camera looks across the way from the source to the target.
@@ -438,7 +415,7 @@ class PourEnv(PourGymEnv):
         self._poured_any = False
         self._corrections = 0
         self._substeps = 0
-        self._counts = self._count()
+        self._counts = self._count_now()
         self._potentials = self._potential()
         self.camera = self.holder.camera(self.lip, self.target_pos) or self.camera
         return self._observation(), self._info()
@@ -451,7 +428,7 @@ class PourEnv(PourGymEnv):
         self.lip, self.tilt = reached.lip, reached.tilt
         self._substeps = self.world.step(self.dt)
         self._corrections = self.world.corrections
-        prev, c = self._counts, self._count()
+        prev, c = self._counts, self._count_now()
         self._counts = c
         out = self.fill - c["in_source"]
         self._out_run = self._out_run + 1 if out >= self.pour_threshold else 0
@@ -514,27 +491,10 @@ class PourEnv(PourGymEnv):
         return lip, float(np.clip(tilt, 0.0, self.max_tilt))
 
     # ------------------------------------------------------------------ helpers
-    def source_pose(self, lip: np.ndarray, tilt_deg: float) -> tuple[np.ndarray, np.ndarray]:
-        """The source's (position, rotation) with its lip at ``lip`` (m), tilted (deg)."""
-        return self.frame.pose(lip, tilt_deg)
-
-    def source_rotation(self, tilt_deg: float) -> np.ndarray:
-        """The source's rotation at a tilt (deg) towards +x, its lip facing the target."""
-        return self.frame.rotation(tilt_deg)
-
-    def _count(self) -> dict:
-        """Particles in the source, in the target, in flight and spilled (and where)."""
+    def _count_now(self) -> dict:
+        """The step's counts (:func:`~pour_gym.envs.rules.pour_counts`)."""
         census = self.world.census()
-        elsewhere = census.where < 0
-        speed = np.linalg.norm(self.world.fluid.v, axis=1) if census.elsewhere else None
-        moving = elsewhere & (speed > RESTING_SPEED) if speed is not None else elsewhere
-        return {
-            "in_source": int(census.counts[self.source.index]),
-            "poured": int(census.counts[self.target.index]),
-            "in_flight": int(np.count_nonzero(moving)),
-            "spilled": int(np.count_nonzero(elsewhere & ~moving)),
-            "where": census.where,
-        }
+        return pour_counts(census, self.world.fluid.v, self.source.index, self.target.index)
 
     def _potential(self) -> dict[str, float]:
         """Potentials of the shaping terms (:func:`~pour_gym.envs.rules.shaping_potentials`)."""

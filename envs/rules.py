@@ -1,19 +1,30 @@
 """The pouring task's rules, in one place.
 
-The tolerance, when an episode ends, success, why it ended, the amount's reward terms and
-the shaping potentials, and how the tilt action is encoded: pure functions of the counts a
+The episode's fill and amount, the counts (what has spilled), the tolerance, when an
+episode ends, success, why it ended, the amount's reward terms and the shaping
+potentials, and how the tilt and lip actions are encoded: pure functions of the counts a
 step takes (particles in the source, in the target, in flight and spilled), the tilt, the
-lip and the holder's failure.
-:class:`~pour_gym.envs.pour.PourEnv` steps by them, :class:`~pour_gym.envs.task.Task`
-scores episodes by them, and the scripted policy and its demonstrations encode their
-tilts by them.
+lip and the holder's failure. :class:`~pour_gym.envs.pour.PourEnv` steps by them,
+:class:`~pour_gym.envs.task.Task` scores episodes by them, and the scripted policy and its
+demonstrations encode their actions by them.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+from pour_gym.errors import InputError
+
+if TYPE_CHECKING:
+    from pour_gym.sim.census import Census
+
+# A particle in no container moving slower than this (m/s) has come to rest: spilled.
+RESTING_SPEED = 0.05
+# The fill left over when the source's fill is sized to the task, particles.
+FILL_MARGIN = 100
 
 # Where the aim shaping draws the lip: this many target rim radii before its centre.
 AIM_OFFSET = 0.5
@@ -43,6 +54,81 @@ POUR_OUTCOMES = {
 def tolerance(target_amount: int) -> int:
     """How far the poured amount may miss the target, particles: 10 %, at least 5."""
     return max(5, round(0.1 * target_amount))
+
+
+def episode_amounts(
+    capacity_source: int,
+    capacity_target: int,
+    amount_range: tuple[int, int],
+    source_particles: int | None,
+    rng: np.random.Generator,
+    amount: int | None = None,
+    margin: int | None = None,
+) -> tuple[int, int]:
+    """An episode's fill of the source and its target amount, particles.
+
+    Args:
+        capacity_source: particles the source holds (60 % of its cavity).
+        capacity_target: particles the target holds, likewise.
+        amount_range: (low, high) of the target amount drawn, before the capacities.
+        source_particles: a fixed fill, or None to size it to the task (the amount plus
+            ``FILL_MARGIN``).
+        rng: draws the amount when ``amount`` is None.
+        amount: the reset option ``target_amount``.
+        margin: the reset option ``fill_margin``: the fill is then the amount plus it.
+
+    Returns:
+        ``(fill, amount)``, the fill at most the source's capacity.
+
+    Raises:
+        InputError: a margin with a fixed fill or below 0, or an amount not in
+            [1, fill].
+    """
+    if source_particles is None:
+        most = capacity_source - FILL_MARGIN
+    else:
+        most = min(source_particles, capacity_source) - 50
+    hi = max(1, min(amount_range[1], most, capacity_target))
+    lo = min(amount_range[0], hi)
+    amount = int(rng.integers(lo, hi + 1)) if amount is None else int(amount)
+    fill = source_particles
+    if margin is not None:
+        if source_particles is not None or int(margin) < 0:
+            raise InputError(
+                "the reset option fill_margin must be a count of particles >= 0, and only "
+                f"applies when source_particles is None (got {margin} with "
+                f"source_particles={source_particles})"
+            )
+        fill = amount + int(margin)
+    fill = min(fill if fill is not None else amount + FILL_MARGIN, capacity_source)
+    if not 1 <= amount <= fill:
+        raise InputError(f"target_amount must be in [1, {fill}] particles, not {amount}")
+    return fill, amount
+
+
+def pour_counts(census: Census, velocities: np.ndarray, source: int, target: int) -> dict:
+    """Particles in the source, in the target, in flight and spilled (and where).
+
+    Args:
+        census: where every particle is (:meth:`pour_gym.sim.World.census`).
+        velocities: (N, 3) the particles' velocities, m/s.
+        source: the source's index among the world's containers.
+        target: the target's, likewise.
+
+    Returns:
+        ``{"in_source", "poured", "in_flight", "spilled", "where"}``: a particle in no
+        container is in flight while faster than ``RESTING_SPEED``, spilled once slower.
+    """
+    elsewhere = census.where < 0
+    speed = np.linalg.norm(velocities, axis=1) if census.elsewhere else None
+    moving = elsewhere & (speed > RESTING_SPEED) if speed is not None else elsewhere
+    return {
+        "in_source": int(census.counts[source]),
+        "poured": int(census.counts[target]),
+        "in_flight": int(np.count_nonzero(moving)),
+        "spilled": int(np.count_nonzero(elsewhere & ~moving)),
+        "where": census.where,
+    }
 
 
 def succeeded(poured: int, spilled: int, tilt: float, target_amount: int, tol: int) -> bool:

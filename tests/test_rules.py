@@ -4,16 +4,22 @@ import numpy as np
 import pytest
 
 from pour_gym.envs.rules import (
+    FILL_MARGIN,
     POUR_OUTCOMES,
+    RESTING_SPEED,
     UPRIGHT_BAND,
     amount_terms,
+    episode_amounts,
     episode_end,
     outcome,
+    pour_counts,
     succeeded,
     tilt_action,
     tilt_goal,
     tolerance,
 )
+from pour_gym.errors import InputError
+from pour_gym.sim.census import Census
 
 
 def _counts(in_source=0, poured=0, in_flight=0, spilled=0):
@@ -64,3 +70,31 @@ def test_the_tilt_encoding_and_its_inverse():
     assert tilt_goal(0.0, 135.0) == pytest.approx(57.5)  # a zero action holds 57.5 deg
     for a in np.linspace(-1.0, 1.0, 21):
         assert tilt_action(tilt_goal(a, 135.0), 135.0) == pytest.approx(a, abs=1e-12)
+
+
+def test_the_episode_amounts_fit_both_containers():
+    rng = np.random.default_rng(0)
+    # Sized to the task: the amount drawn within the range and both capacities, the fill
+    # the amount plus the margin, capped by the source's capacity.
+    for _ in range(50):
+        fill, amount = episode_amounts(400, 250, (50, 300), None, rng)
+        assert 50 <= amount <= 250 and fill == min(amount + FILL_MARGIN, 400)
+    # A fixed fill leaves 50 particles in the source at the largest amount.
+    amounts = {episode_amounts(2000, 2000, (1, 10_000), 600, rng)[1] for _ in range(200)}
+    assert max(amounts) <= 550
+    assert episode_amounts(2000, 2000, (50, 300), None, rng, amount=120, margin=30) == (150, 120)
+    with pytest.raises(InputError, match="fill_margin"):
+        episode_amounts(2000, 2000, (50, 300), 600, rng, margin=30)
+    with pytest.raises(InputError, match=r"target_amount must be in \[1, 400\]"):
+        episode_amounts(400, 2000, (50, 300), None, rng, amount=401)
+
+
+def test_a_particle_in_no_container_has_spilled_once_it_rests():
+    where = np.array([0, 0, 1, -1, -1, -1])
+    speed = np.array([0.0, 0.0, 0.0, 2.0, RESTING_SPEED * 1.01, RESTING_SPEED * 0.99])
+    v = np.zeros((6, 3))
+    v[:, 2] = -speed
+    census = Census(where=where, counts=np.array([2, 1]), elsewhere=3)
+    c = pour_counts(census, v, source=0, target=1)
+    assert {k: c[k] for k in ("in_source", "poured", "in_flight", "spilled")} == {
+        "in_source": 2, "poured": 1, "in_flight": 2, "spilled": 1}  # fmt: skip

@@ -117,7 +117,7 @@ def f4_particles(
     :func:`pour_gym.features.cavity_points`.
     """
     u = env.unwrapped
-    rot = u.source_rotation(delta)
+    rot = u.frame.rotation(delta)
     held = held_volume(u.source.asset.geometry, rot, points, sill) / u.fluid_config.particle_volume
     return u.fill - held
 
