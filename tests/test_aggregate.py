@@ -101,6 +101,8 @@ def test_the_report_gives_each_row_its_aggregates_over_seeds_and_containers(tmp_
     # Against the expert's 1: broad (0 + 0.5 + 0) / 3, high (0.5 + 1 + 0) / 3.
     assert improvement == pytest.approx(np.mean([0.5 / 3, 1.5 / 3]))
     assert rows["scripted"]["iqm"][0] == 1.0 and rows["random"]["iqm"][0] == 0.0
+    # One run: no seeds to resample, so no interval (not the value twice).
+    assert rows["scripted"]["iqm"][1] is None and rows["random"]["improvement"][1] is None
     text = paths["report"].read_text()
     assert "| RANDOM | - | uniform random (reference) |" in text
     assert "normalised return, unseen (IQM)" in text

@@ -320,7 +320,8 @@ def aggregates(group: list[dict], references: dict[str, dict]) -> dict | None:
         references: this env's ``"scripted"`` and ``"random"`` reference summaries.
 
     Returns:
-        ``{"iqm": (value, interval), "improvement": (value, interval), "tasks": n}``, or
+        ``{"iqm": (value, interval), "improvement": (value, interval), "tasks": n}`` (the
+        intervals None for one seed), or
         None where a reference is missing or evaluated other containers, or where the
         row's runs were evaluated under reward weights of their own (their returns are in
         other units than the references').
@@ -338,11 +339,14 @@ def aggregates(group: list[dict], references: dict[str, dict]) -> dict | None:
         return None
     x = normalised(scores, low, high[0])
     expert = np.ones((1, len(objects)))
+    # One seed: resampling seeds within each container has nothing to resample (the
+    # interval would be the value twice), so none is given, as for the metrics.
+    several = len(group) > 1
     return {
-        "iqm": (float(iqm(x)), bootstrap_interval(iqm, x)),
+        "iqm": (float(iqm(x)), bootstrap_interval(iqm, x) if several else None),
         "improvement": (
             float(probability_of_improvement(x, expert)),
-            bootstrap_interval(probability_of_improvement, x, expert),
+            bootstrap_interval(probability_of_improvement, x, expert) if several else None,
         ),
         "tasks": len(objects),
     }
@@ -358,11 +362,11 @@ def _algorithm(algo: str, kind: str) -> str:
     return " ".join([name.upper(), *([exploration] if exploration else [])])
 
 
-def _aggregate_cell(value: tuple[float, tuple[float, float]] | None) -> str:
+def _aggregate_cell(value: tuple[float, tuple[float, float] | None] | None) -> str:
     if value is None:
         return "-"
-    v, (lo, hi) = value
-    return f"{v:.2f} [{lo:.2f}, {hi:.2f}]"
+    v, interval = value
+    return f"{v:.2f}" + (f" [{interval[0]:.2f}, {interval[1]:.2f}]" if interval else "")
 
 
 def _group_key(s: dict) -> tuple[str, str, str, str, str, str, str]:
@@ -567,7 +571,8 @@ def baselines_report(
         "`ref_min_score` / `ref_max_score`), its interquartile mean (the mean of the middle "
         "half); *P(above the expert)* is the chance that a seed's return on a container "
         "beats the expert's (ties count a half), averaged over the containers; each with a "
-        "95 % stratified-bootstrap interval (seeds resampled within each container). Above "
+        "95 % stratified-bootstrap interval (seeds resampled within each container; one seed: "
+        "none). Above "
         "1 and above 0.5: beyond the expert. A row trained and evaluated with reward "
         "weights of its own (the residual's) has none: its returns are in other units.",
         "",
