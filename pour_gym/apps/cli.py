@@ -260,7 +260,7 @@ def build_parser() -> argparse.ArgumentParser:
         type=json_object,
         default={},
         help="JSON of more environment arguments, over the model's own (its config.json's), "
-        "e.g. '{\"spill_weight\": 10}' or '{\"holder\": \"panda\"}'",
+        'e.g. \'{"spill_weight": 10}\' or \'{"holder": "panda"}\'',
     )
 
     p = add(
