@@ -166,6 +166,8 @@ def test_a_family_run_scored_on_the_catalogue_too_gets_references_with_every_one
     (family / "eval-catalogue.json").write_text(json.dumps(evaluation((1.0, 1.0, 3.0), False)))
     sampled = {**evaluation((2.0, 2.0, 2.0), False), "actions": "sampled"}
     (family / "eval-catalogue-sampled.json").write_text(json.dumps(sampled))
+    weighted = {**evaluation((5.0, 5.0, 5.0), False), "env_kwargs": {"spill_weight": 10}}
+    (family / "eval-catalogue-spill10.json").write_text(json.dumps(weighted))
     refs = []
     for policy, returns in (("scripted", (2.0, 2.0, 2.0)), ("random", (0.0, 0.0, 0.0))):
         refs.append(tmp_path / f"{policy}.json")
@@ -181,6 +183,10 @@ def test_a_family_run_scored_on_the_catalogue_too_gets_references_with_every_one
     assert cat["improvement"][0] == pytest.approx(1 / 3)
     (by_samples,) = [r for r in doc["rows"] if r["model"] == "last step, sampled actions"]
     assert by_samples["scored_on"] == "catalogue (3)" and by_samples["iqm"][0] == 1.0
+    # Evaluated under reward weights of its own: a row apart, with no aggregates (its
+    # returns are in other units than the references').
+    spill10 = rows["ppo", "catalogue (3)", "last step, spill_weight=10"]
+    assert spill10["seeds"] == [0] and spill10["iqm"] is None
     scored = {(r["algo"], r["scored_on"]) for r in doc["rows"]}
     assert {("scripted", "catalogue (3)"), ("random", "catalogue (3)"),
             ("scripted", "catalogue (2)")} <= scored  # fmt: skip

@@ -207,7 +207,14 @@ def run_summaries(run_dir: Path) -> list[dict]:
             model = model.removesuffix(SAMPLED) + (
                 SAMPLED if result["actions"] == "sampled" else ""
             )
+        # Evaluated with environment arguments of its own (pour-gym evaluate --env-kwargs):
+        # a row of its own, its returns in those arguments' units (no aggregates with
+        # reward weights of its own, as for a run trained under them).
+        extra = result.get("env_kwargs") or {}
+        if extra:
+            model += ", " + ", ".join(f"{k}={v}" for k, v in sorted(extra.items()))
         found.append({**main, "run": f"{main['run']}-{name}", "model": model,
+                      "env_kwargs": {**main["env_kwargs"], **extra},
                       "metrics": _metrics(rows), "eval_episodes": episodes,
                       "eval_rows": rows})  # fmt: skip
     return found
