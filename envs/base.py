@@ -28,6 +28,7 @@ from pour_gym.envs.containers import ContainerStore, release
 from pour_gym.envs.observations import VECTOR_MODES, parse_obs_mode
 from pour_gym.errors import InputError
 from pour_gym.fluid import precompile
+from pour_gym.fluid.liquid import Liquid, liquids_of
 from pour_gym.fluid.pbf import PBFConfig, default_threads
 from pour_gym.fluid.sdf import SignedDistanceField
 from pour_gym.perception import PERCEPTIONS, perceived_asset
@@ -62,6 +63,10 @@ class PourGymEnv(gym.Env, EzPickle):
         sensor_config: the head camera's image size, points, noise (a
             :class:`~pour_gym.sim.sensors.SensorConfig` or a dict of its fields), for the
             ``depth``, ``rgb`` and ``points`` observation modes.
+        liquid: what is poured (:mod:`pour_gym.fluid.liquid`): a preset's name (``water``,
+            ``milk``, ``oil``, ``syrup``, ``honey``), a ``Liquid``, a dict of its fields,
+            or a list of them (or ``"water,honey"``) to draw each episode's from, seeded;
+            None for water. ``info["liquid"]`` names the episode's.
     """
 
     metadata: ClassVar[dict] = {"render_modes": RENDER_MODES, "render_fps": 10}
@@ -90,6 +95,7 @@ class PourGymEnv(gym.Env, EzPickle):
         perception: str = "true",
         scan_seed: int = 0,
         sensor_config: SensorConfig | dict | None = None,
+        liquid: str | Liquid | dict | list | None = None,
     ):
         if fluid not in FLUIDS:
             raise InputError(f"fluid must be one of {FLUIDS}, not {fluid!r}")
@@ -105,6 +111,14 @@ class PourGymEnv(gym.Env, EzPickle):
         self._add_reward_weights(reward_weights)
         self.fluid = fluid
         self.fluid_config = fluid_config or PBFConfig()
+        # Each liquid's fluid parameters, made now: a liquid the fluid cannot take (a spacing
+        # with no calibration, rigid spheres) is refused before any work.
+        self.liquids = liquids_of(liquid)
+        self._liquid_configs = [x.fluid_config(self.fluid_config) for x in self.liquids]
+        if fluid != "pbf" and any(c != self.fluid_config for c in self._liquid_configs):
+            raise InputError("liquids other than water need fluid='pbf' (rigid spheres have no "
+                             "viscosity)")  # fmt: skip
+        self.liquid: Liquid = self.liquids[0]
         self.num_threads = None if num_threads is None else int(num_threads)
         self.render_mode = render_mode
         self.camera = camera
@@ -278,6 +292,12 @@ class PourGymEnv(gym.Env, EzPickle):
                 f"this {type(self).__name__} was closed; make a new environment to go on"
             )
         super().reset(seed=seed)
+        # The episode's liquid: drawn only when there is a choice, so that one liquid
+        # leaves the episode's draws (and water's episodes, bit for bit) as they were.
+        choice = int(self.np_random.integers(len(self.liquids))) if len(self.liquids) > 1 else 0
+        self.liquid = self.liquids[choice]
+        if self.fluid == "pbf":
+            self.world.set_liquid(self._liquid_configs[choice])
         if seed is not None or self._sensor_rng is None:
             # The sensors' noise and point sampling have a stream of their own, spawned
             # from the episode seed: with or without sensors, a seed gives the same episodes.
@@ -382,8 +402,9 @@ class PourGymEnv(gym.Env, EzPickle):
         world = self.world
         table = TABLE_COLOR[:3] if world.table else None
         return sensor.capture(
-            self.scene(sensor), world.particles, radius, table, self._sensor_rng, rgb=rgb
-        )
+            self.scene(sensor), world.particles, radius, table, self._sensor_rng, rgb=rgb,
+            liquid_rgb=self.liquid.color,
+        )  # fmt: skip
 
     def _drawn_mesh(self, role: str, sensor: Sensor) -> tuple[np.ndarray, np.ndarray]:
         """The mesh of a role's container as ``sensor`` draws it (made once per detail)."""

@@ -11,6 +11,7 @@ from pour_gym.envs.observations import parse_obs_mode, vector_mode
 from pour_gym.envs.task import DROP
 from pour_gym.errors import InputError
 from pour_gym.features import fill_fraction, relative_distance_height
+from pour_gym.fluid.liquid import Liquid
 from pour_gym.fluid.pbf import PBFConfig
 from pour_gym.sim import Camera, Container
 from pour_gym.sim.sensors import SensorConfig
@@ -73,6 +74,7 @@ class ParticleDropEnv(PourGymEnv):
     | ``spill_weight`` | float | 2.0 | weight of ``spill`` |
     | ``render_mode`` | str or None | None | ``"rgb_array"`` or ``"human"`` |
     | ``sensor_config`` | SensorConfig or dict | None | image size, points, noise |
+    | ``liquid`` | str, Liquid, dict or list | None | what is poured; a list: drawn per episode |
 
     ``reset(options=...)`` accepts ``container`` (a name or mesh path), ``spawn`` (xyz in
     the container's frame, m) and ``fill`` (fraction of the volume).
@@ -83,6 +85,11 @@ class ParticleDropEnv(PourGymEnv):
     is not about to overflow (fills up to 80 % of the volume).
 
     ## Version History
+    * (this release, every version) ``liquid`` added (``"water"``, ``"milk"``, ``"oil"``,
+      ``"syrup"``, ``"honey"``, a :class:`~pour_gym.fluid.liquid.Liquid` or a list drawn
+      from per episode, seeded;
+      ``info["liquid"]``; docs/liquids.md): water, the default, is the fluid as it was, bit
+      for bit; syrup and honey add a viscosity in its unit and walls that hold them.
     * v0 (this release): the sensor observation modes (``"depth"``, ``"rgb"``,
       ``"points"``, tuples of modes) and ``sensor_config`` (the defaults change nothing);
       the features from :mod:`pour_gym.features`; reward weights and
@@ -109,6 +116,7 @@ class ParticleDropEnv(PourGymEnv):
         spill_weight: float = 2.0,
         render_mode: str | None = None,
         sensor_config: SensorConfig | dict | None = None,
+        liquid: str | Liquid | dict | list | None = None,
     ):
         EzPickle.__init__(
             self,
@@ -124,6 +132,7 @@ class ParticleDropEnv(PourGymEnv):
             spill_weight=spill_weight,
             render_mode=render_mode,
             sensor_config=sensor_config,
+            liquid=liquid,
         )
         super().__init__(
             fluid,
@@ -133,6 +142,7 @@ class ParticleDropEnv(PourGymEnv):
             Camera(distance=0.4, pitch=-35.0),
             {"correct": correct_weight, "spill": spill_weight},
             sensor_config=sensor_config,
+            liquid=liquid,
         )
         parse_obs_mode(obs_mode)  # a bad mode is named before any other argument
         if blob < 1:
@@ -240,6 +250,7 @@ class ParticleDropEnv(PourGymEnv):
         """The episode's info; after the step also the reward's terms and the outcome."""
         info = {
             "container": self._names["container"],
+            "liquid": self.liquid.name,
             "features": self._features.tolist(),
             "spawn": self.spawn.tolist(),
             "fill": self.fill,

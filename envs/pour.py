@@ -17,6 +17,7 @@ from pour_gym.envs.pour_observation import (
     state_vector,
 )
 from pour_gym.envs.rules import (
+    amount_option,
     amount_terms,
     episode_amounts,
     episode_end,
@@ -28,6 +29,7 @@ from pour_gym.envs.rules import (
 )
 from pour_gym.envs.task import POUR
 from pour_gym.errors import InputError
+from pour_gym.fluid.liquid import Liquid
 from pour_gym.fluid.pbf import PBFConfig
 from pour_gym.sim import Camera, Container
 from pour_gym.sim.rotations import about_z
@@ -157,13 +159,15 @@ class PourEnv(PourGymEnv):
     | ``scan_seed`` | int | 0 | the scan's noise seed (``perception="scan"``) |
     | ``render_mode`` | str or None | None | ``"rgb_array"`` or ``"human"`` |
     | ``sensor_config`` | SensorConfig or dict | None | image size, points, noise |
+    | ``liquid`` | str, Liquid, dict or list | None | what is poured; a list: drawn per episode |
     | ``holder`` | str | ``"free"`` | what holds the source (:mod:`pour_gym.envs.holders`) |
     | ``**holder_kwargs`` | | | the holder's own arguments |
 
     ``reset(options=...)`` accepts ``source``, ``target`` (names or mesh paths),
-    ``target_amount`` (particles), ``near_target`` (true: the lip starts over the near
-    half of the target's opening, 0.1-0.9 rim radii before its centre towards the source
-    and within 0.4 to the sides, instead of at the origin; a start for curricula) and
+    ``target_amount`` (particles) or ``target_ml`` (millilitres), ``near_target`` (true:
+    the lip starts over the near half of the target's opening, 0.1-0.9 rim radii before
+    its centre towards the source and within 0.4 to the sides, instead of at the origin;
+    a start for curricula) and
     ``fill_margin`` (particles: this episode's fill is T plus this margin instead of T +
     100; for curricula, see :class:`pour_gym.agents.training.curriculum.TrainingStarts`).
 
@@ -172,6 +176,11 @@ class PourEnv(PourGymEnv):
     residual models, and v1 a set of defaults for learning from the reward, not a fix of
     v0 (Gymnasium's "out of date" warning is silenced for Pour-v0).
 
+    * (this release, every version) ``liquid`` added (``"water"``, ``"milk"``, ``"oil"``,
+      ``"syrup"``, ``"honey"``, a :class:`~pour_gym.fluid.liquid.Liquid` or a list drawn
+      from per episode, seeded;
+      ``info["liquid"]``; docs/liquids.md): water, the default, is the fluid as it was, bit
+      for bit; syrup and honey add a viscosity in its unit and walls that hold them.
     * v1: the same class, task and physics as v0 with the defaults under which a standard
       learner learns the task from its reward (docs: learning from the reward):
       ``tilt_control="angle"`` (a zero action holds 57.5 deg, so exploration reaches the
@@ -247,6 +256,7 @@ class PourEnv(PourGymEnv):
         scan_seed: int = 0,
         render_mode: str | None = None,
         sensor_config: SensorConfig | dict | None = None,
+        liquid: str | Liquid | dict | list | None = None,
         holder: str = "free",
         **holder_kwargs,
     ):
@@ -282,6 +292,7 @@ class PourEnv(PourGymEnv):
             scan_seed=scan_seed,
             render_mode=render_mode,
             sensor_config=sensor_config,
+            liquid=liquid,
             holder=holder,
             **holder_kwargs,
         )
@@ -308,6 +319,7 @@ class PourEnv(PourGymEnv):
             perception=perception,
             scan_seed=scan_seed,
             sensor_config=sensor_config,
+            liquid=liquid,
         )
         modes = parse_obs_mode(obs_mode)
         if source_particles is not None and source_particles < 100:
@@ -374,7 +386,8 @@ class PourEnv(PourGymEnv):
         """Start an episode; ``options`` may fix ``source``, ``target``, ``target_amount``."""
         super().reset(seed=seed)
         options = self._options(
-            options, {"source", "target", "target_amount", "near_target", "fill_margin"}
+            options,
+            {"source", "target", "target_amount", "target_ml", "near_target", "fill_margin"},
         )
         source = self._choose(self.sources, options.get("source"))
         target = self._choose(self.targets, options.get("target"))
@@ -402,7 +415,7 @@ class PourEnv(PourGymEnv):
         self.fill, self.target_amount = episode_amounts(
             int(0.6 * gs.cavity_volume / v), int(0.6 * gt.cavity_volume / v),
             self.amount_range, self.source_particles, rng,
-            options.get("target_amount"), options.get("fill_margin"),
+            amount_option(options, v), options.get("fill_margin"),
         )  # fmt: skip
         self.tolerance = tolerance(self.target_amount)
         self.world.fill(self.source, particles=self.fill)
@@ -560,6 +573,7 @@ class PourEnv(PourGymEnv):
         return {
             "source": self._names["source"],
             "target": self._names["target"],
+            "liquid": self.liquid.name,
             "target_amount": self.target_amount,
             "target_ml": self.target_amount * v_ml,
             "tolerance": self.tolerance,

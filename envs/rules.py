@@ -56,6 +56,26 @@ def tolerance(target_amount: int) -> int:
     return max(5, round(0.1 * target_amount))
 
 
+def amount_option(options: dict, particle_volume: float) -> int | None:
+    """The reset options' target amount in particles: ``target_amount``, or ``target_ml``.
+
+    Args:
+        options: the reset's options.
+        particle_volume: m^3 a particle stands for.
+
+    Raises:
+        InputError: both given, or a ``target_ml`` that is not a positive number.
+    """
+    if "target_ml" not in options:
+        return options.get("target_amount")
+    if options.get("target_amount") is not None:
+        raise InputError("give the amount as target_amount (particles) or target_ml, not both")
+    ml = options["target_ml"]
+    if not isinstance(ml, (int, float)) or not ml > 0:
+        raise InputError(f"target_ml is a positive number of millilitres, not {ml!r}")
+    return max(1, round(ml * 1e-6 / particle_volume))
+
+
 def episode_amounts(
     capacity_source: int,
     capacity_target: int,

@@ -13,6 +13,7 @@ from pour_gym.envs.observations import parse_obs_mode, vector_mode
 from pour_gym.envs.task import TILT
 from pour_gym.errors import InputError
 from pour_gym.features import cavity_points, fluid_features, mouth_volume
+from pour_gym.fluid.liquid import Liquid
 from pour_gym.fluid.pbf import PBFConfig
 from pour_gym.sim import Camera
 from pour_gym.sim.rotations import from_rotvec
@@ -85,10 +86,16 @@ class TiltPourEnv(PourGymEnv):
     | ``spill_weight`` | float | 2.0 | weight of ``spill`` |
     | ``render_mode`` | str or None | None | ``"rgb_array"`` or ``"human"`` |
     | ``sensor_config`` | SensorConfig or dict | None | image size, points, noise |
+    | ``liquid`` | str, Liquid, dict or list | None | what is poured; a list: drawn per episode |
 
     ``reset(options=...)`` accepts ``container``, ``fill`` and ``tilt_deg``.
 
     ## Version History
+    * (this release, every version) ``liquid`` added (``"water"``, ``"milk"``, ``"oil"``,
+      ``"syrup"``, ``"honey"``, a :class:`~pour_gym.fluid.liquid.Liquid` or a list drawn
+      from per episode, seeded;
+      ``info["liquid"]``; docs/liquids.md): water, the default, is the fluid as it was, bit
+      for bit; syrup and honey add a viscosity in its unit and walls that hold them.
     * v0 (this release): the sensor observation modes (``"depth"``, ``"rgb"``,
       ``"points"``, tuples of modes) and ``sensor_config`` (the defaults change nothing);
       the hydrostatic label measures from the mouth's lowest point (it
@@ -122,6 +129,7 @@ class TiltPourEnv(PourGymEnv):
         spill_weight: float = 2.0,
         render_mode: str | None = None,
         sensor_config: SensorConfig | dict | None = None,
+        liquid: str | Liquid | dict | list | None = None,
     ):
         EzPickle.__init__(
             self,
@@ -137,6 +145,7 @@ class TiltPourEnv(PourGymEnv):
             spill_weight=spill_weight,
             render_mode=render_mode,
             sensor_config=sensor_config,
+            liquid=liquid,
         )
         super().__init__(
             fluid,
@@ -147,6 +156,7 @@ class TiltPourEnv(PourGymEnv):
             {"correct": correct_weight, "spill": spill_weight},
             steps_fluid=label_mode == "simulate",
             sensor_config=sensor_config,
+            liquid=liquid,
         )
         parse_obs_mode(obs_mode)  # a bad mode is named before any other argument
         if label_mode not in LABEL_MODES:
@@ -268,6 +278,7 @@ class TiltPourEnv(PourGymEnv):
         """The episode's info; after the step also the reward's terms and the outcome."""
         info = {
             "container": self.name,
+            "liquid": self.liquid.name,
             "fill": self.fill,
             "tilt_deg": self.tilt,
             "particles": self.count,

@@ -1,5 +1,6 @@
 """train.py, evaluation and policy search at tiny sizes: outputs exist and make sense."""
 
+import csv
 import json
 import subprocess
 import sys
@@ -46,6 +47,20 @@ def test_every_recipe_is_taken_by_its_algorithm():
         for key in recipes:
             algo, _, variant = key.partition("/")
             load_recipe(name, algo, algorithm(algo), variant=variant)
+
+
+def test_a_lin_learning_rate_falls_linearly_to_zero_and_a_bad_one_is_refused():
+    """rl-zoo3's ``lin_<value>`` for the learning rate or clip range: the value at the
+    run's start, half of it half-way, 0 at the end; another string is refused by name."""
+    from pour_gym.agents.training.recipes import algorithm_arguments
+
+    made = algorithm_arguments({"learning_rate": "lin_3e-4", "clip_range": 0.2, "n_steps": 8})
+    schedule = made["learning_rate"]
+    assert [schedule(p) for p in (1.0, 0.5, 0.0)] == pytest.approx([3e-4, 1.5e-4, 0.0])
+    assert made["clip_range"] == 0.2 and made["n_steps"] == 8
+    for bad in ("cos_3e-4", "lin_", "lin_-1"):
+        with pytest.raises(InputError, match="lin_<positive number>"):
+            algorithm_arguments({"learning_rate": bad})
 
 
 def test_training_starts_draw_where_an_episode_starts_and_how_full():
@@ -220,8 +235,10 @@ def test_pour_v1_recipes_learn_from_the_reward_a_few_hundred_steps(algo, tmp_pat
     )  # fmt: skip
     if algo == "ppo":
         # Three updates; a checkpoint and a curve point after each rollout of 128 steps.
+        # The learning rate falls linearly to 0 (rl-zoo3's lin_ form) over the run.
         options += ("--set", "n_steps=128", "--set", "batch_size=32", "--timesteps", "300",
-                    "--curve-every", "128", "--checkpoint-every", "128")  # fmt: skip
+                    "--curve-every", "128", "--checkpoint-every", "128",
+                    "--set", "learning_rate=lin_0.0003")  # fmt: skip
     else:
         options += ("--set", "learning_starts=64", "--set", "batch_size=32")
     done = subprocess.run(train_command(out, *options), capture_output=True, text=True,
@@ -238,6 +255,12 @@ def test_pour_v1_recipes_learn_from_the_reward_a_few_hundred_steps(algo, tmp_pat
         assert len(shares) == 6 and sum(shares) == pytest.approx(1.0)
     header = (out / "curve.csv").read_text().splitlines()[0].split(",")
     assert "outcome_never_poured" in header and (out / "curve.png").is_file()
+    if algo == "ppo":
+        assert config["hyperparameters"]["learning_rate"] == "lin_0.0003"
+        with (out / "progress.csv").open() as f:
+            rates = [float(r["train/learning_rate"]) for r in csv.DictReader(f)
+                     if r.get("train/learning_rate")]  # fmt: skip
+        assert len(rates) >= 2 and rates == sorted(rates, reverse=True) and rates[0] < 3e-4
     assert "failures" in (out / "eval.md").read_text()
     if algo != "ppo":
         return

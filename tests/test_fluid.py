@@ -296,30 +296,32 @@ def test_scripted_pours_from_the_scanned_mugs_spill_nothing():
 
 
 def test_the_kernels_named_arguments_are_its_parameters_in_order():
-    """``KernelArguments`` flattens to the compiled kernel's 54 positional arguments: its
+    """``KernelArguments`` flattens to the compiled kernel's 58 positional arguments: its
     groups' fields must be the kernel's parameter names, in the kernel's order."""
     from pour_gym.fluid import build
 
     assert build.KernelArguments.names() == build.parameters()
     fluid = PBFluid(np.full((4, 3), 0.01))
     args = fluid.kernel_arguments(0.01)
-    assert len(args.flat()) == len(build.parameters()) == 54
+    assert len(args.flat()) == len(build.parameters()) == 58
     assert args.particles.x is fluid.x
 
 
-@pytest.mark.parametrize("omega, gamma", [(2.9, 0.47), (0.0, 1.3), (6.0, 0.1)])
-def test_the_damped_wave_fit_recovers_frequency_and_decay(omega, gamma):
-    """``fit_damped_wave`` (the shear-wave measurement's fit) recovers the frequency and the
-    decay of ``exp(-gamma t) cos(omega t)`` sampled as the measurement samples it, with
-    noise of 2 % of the start: an oscillating (elastic) and a purely decaying (viscous)
-    mode alike."""
-    from pour_gym.fluid.validation import fit_damped_wave
+@pytest.mark.parametrize("nu, c", [(1.8e-3, 0.09), (1e-2, 0.0), (1e-2, 0.2), (5e-4, 0.0)])
+def test_the_viscoelastic_fit_recovers_viscosity_and_wave_speed(nu, c):
+    """``fit_viscoelastic`` (the shear wave's fit) recovers the viscosity and the elastic
+    wave speed of a Kelvin-Voigt mode sampled as the measurement samples it (the tray's k),
+    with noise of 2 % of the start: a soft solid (the method's water), a liquid and a
+    viscous solid alike; within 5 % and 5 mm/s."""
+    from pour_gym.fluid.validation import TRAY_WIDTH, fit_viscoelastic, viscoelastic_mode
 
+    k = np.pi / TRAY_WIDTH
     t = np.arange(61) * 0.05
-    a = np.exp(-gamma * t) * np.cos(omega * t)
+    a = viscoelastic_mode(t, k, nu, c)
+    assert a[0] == pytest.approx(1.0)
     a[1:] += np.random.default_rng(0).normal(0.0, 0.02, len(t) - 1)
-    found_omega, found_gamma = fit_damped_wave(t, a)
-    assert found_omega == pytest.approx(omega, abs=0.1)
-    assert found_gamma == pytest.approx(gamma, abs=0.05)
+    found_nu, found_c = fit_viscoelastic(t, a, k)
+    assert found_nu == pytest.approx(nu, rel=0.05)
+    assert found_c == pytest.approx(c, abs=0.005)
     with pytest.raises(ValueError, match="at least 4"):
-        fit_damped_wave(t[:3], a[:3])
+        fit_viscoelastic(t[:3], a[:3], k)

@@ -216,6 +216,28 @@ def evaluation_table(result: dict) -> str:
     return "\n".join(lines)
 
 
+def liquids_table(result: dict) -> str:
+    """Markdown of an evaluation over liquids: a row per liquid, then each one's table.
+
+    ``result["by_liquid"]`` maps each liquid's name to an :func:`evaluate_policy` result.
+    """
+    pours = task_of(result["env"]).pours
+    header = ["liquid", "success", "mean return"]
+    if pours:
+        header += ["mean amount error (particles)", "mean spilled", "failures"]
+    rows = []
+    for name, res in result["by_liquid"].items():
+        m = res["mean"]
+        row = [name, f"{m['success']:.2f}", f"{m['return']:.2f}"]
+        if pours:
+            row += [f"{m['amount_error']:.1f}", f"{m['spilled']:.2f}", _failures(m)]
+        rows.append(row)
+    parts = [markdown_table(header, rows, align="l" + "r" * (len(header) - 1))]
+    for name, res in result["by_liquid"].items():
+        parts.append(f"\n### {name}\n\n{evaluation_table(res)}")
+    return "\n".join(parts)
+
+
 def _failures(row: dict) -> str:
     """A row's failed episodes by outcome, e.g. ``spilled 0.2, overshot 0.1``.
 

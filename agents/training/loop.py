@@ -18,7 +18,7 @@ from pour_gym.agents.training.curves import (
 )
 from pour_gym.agents.training.moved_modules import importable_old_paths
 from pour_gym.agents.training.noise import noise_callback
-from pour_gym.agents.training.recipes import Recipe, load_recipe
+from pour_gym.agents.training.recipes import Recipe, algorithm_arguments, load_recipe
 from pour_gym.agents.training.runs import (
     BEST,
     NORMALISER,
@@ -143,7 +143,8 @@ def train(config: TrainConfig) -> dict:
         # must not lend it old points.
         for stale in ("curve.csv", "bc_curve.csv", f"{BEST}/point.json"):
             (out / stale).unlink(missing_ok=True)
-        model = cls(recipe.policy, venv, seed=config.seed, verbose=0, device="cpu", **params)
+        model = cls(recipe.policy, venv, seed=config.seed, verbose=0, device="cpu",
+                    **algorithm_arguments(params))  # fmt: skip
         if demos_cfg:
             start_from_demonstrations(
                 config, model, venv, env_kwargs, demos_cfg, recipe.wrapper(), out

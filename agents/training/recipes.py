@@ -13,6 +13,7 @@ from __future__ import annotations
 import functools
 import importlib
 import inspect
+import re
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from importlib.resources import files
@@ -205,6 +206,56 @@ def load_recipe(
                          "demonstrations, not both")  # fmt: skip
     wrapper_specs(recipe.env_wrapper)  # refuse a bad wrapper before any work
     return recipe
+
+
+# The algorithm arguments that take a schedule: rl-zoo3's "lin_<value>" there is a linear
+# fall from value at the run's first step to 0 at its last.
+SCHEDULED_KEYS = ("learning_rate", "clip_range")
+
+
+@dataclass(frozen=True)
+class LinearSchedule:
+    """``start`` times the run's remaining progress (1 at the first step, 0 at the last).
+
+    SB3 calls a schedule with its ``progress_remaining``; a class rather than a lambda so a
+    saved model holding it loads without this module's closure.
+    """
+
+    start: float
+
+    def __call__(self, progress_remaining: float) -> float:
+        """The value at ``progress_remaining`` (1 at the run's first step, 0 at its last)."""
+        return self.start * progress_remaining
+
+
+def algorithm_arguments(hyperparameters: dict) -> dict:
+    """The algorithm's constructor arguments, with ``lin_<value>`` strings made schedules.
+
+    A recipe writes ``learning_rate: lin_0.0003`` as rl-zoo3 does (the value falls linearly
+    to 0 over the run); the recipe and the run's record keep the string.
+
+    Raises:
+        InputError: a string there that is not ``lin_`` and a positive number.
+    """
+    out = dict(hyperparameters)
+    for key in SCHEDULED_KEYS:
+        value = out.get(key)
+        if not isinstance(value, str):
+            continue
+        match = re.fullmatch(r"lin_([0-9.eE+-]+)", value)
+        start = None
+        if match:
+            try:
+                start = float(match.group(1))
+            except ValueError:
+                start = None
+        if start is None or not start > 0:
+            raise InputError(
+                f"{key} is a number or lin_<positive number> (a linear fall to 0 over the "
+                f"run, as in rl-zoo3), not {value!r}"
+            )
+        out[key] = LinearSchedule(start)
+    return out
 
 
 def _as_list(value) -> list:

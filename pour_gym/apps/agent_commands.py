@@ -92,17 +92,30 @@ def cmd_evaluate(args: argparse.Namespace) -> Output:
     policy, trained = loaded.policy, loaded.trained_on
     env_kwargs = {**loaded.env_kwargs, **args.env_kwargs}  # the user's win over the model's
     args.env = loaded.env_id
-    result = evaluate_policy(
-        policy,
-        args.env,
-        expand_containers(args.objects),
-        args.episodes,
-        seed=args.seed,
-        env_kwargs=env_kwargs,
-        trained_on=trained,
-        source_objects=expand_containers(args.source_objects) if args.source_objects else None,
-        target_objects=expand_containers(args.target_objects) if args.target_objects else None,
-    )
+
+    def run(kwargs: dict) -> dict:
+        return evaluate_policy(
+            policy,
+            args.env,
+            expand_containers(args.objects),
+            args.episodes,
+            seed=args.seed,
+            env_kwargs=kwargs,
+            trained_on=trained,
+            source_objects=expand_containers(args.source_objects) if args.source_objects else None,
+            target_objects=expand_containers(args.target_objects) if args.target_objects else None,
+        )
+
+    if args.liquids:
+        from pour_gym.agents.evaluation.evaluate import liquids_table
+        from pour_gym.fluid.liquid import liquids_of
+
+        liquids = [x.name for x in liquids_of(args.liquids)]  # unknown names fail here
+        by_liquid = {name: run({**env_kwargs, "liquid": name}) for name in liquids}
+        result = {"env": args.env, "policy": args.policy, "seed": args.seed,
+                  "by_liquid": by_liquid}  # fmt: skip
+        return (result, lambda: liquids_table(result))
+    result = run(env_kwargs)
     result["policy"] = args.policy  # what a report's reference row says it was
     if args.actions:  # how a model acted, when asked: a report's row of its own
         result["actions"] = args.actions
@@ -219,6 +232,7 @@ def cmd_episode(args: argparse.Namespace) -> Output:
     from pour_gym.apps.demo import episode_gif
 
     episode = episode_gif(
-        Path(args.out), args.env, args.source, args.target, args.seed, args.target_amount
-    )
+        Path(args.out), args.env, args.source, args.target, args.seed, args.target_amount,
+        liquid=args.liquid,
+    )  # fmt: skip
     return ({"info": episode["info"], "video": episode["video"]}, lambda: episode["text"])

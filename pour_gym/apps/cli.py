@@ -180,9 +180,24 @@ def build_parser() -> argparse.ArgumentParser:
     p = add("bench", commands.cmd_bench, "benchmarks (medians of repeated runs)")
     p.add_argument(
         "what",
-        choices=["reconstruct", "label", "fluid", "accuracy", "envs", "ray", "coldstart"],
-        help="accuracy is the fluid's against hydrostatics (not a timing); coldstart the "
-        "seconds a new process takes to its first step",
+        choices=[
+            "reconstruct", "label", "fluid", "accuracy", "viscosity", "flows", "liquids", "envs",
+            "ray", "coldstart",
+        ],
+        help="accuracy is the fluid's against hydrostatics (not a timing); viscosity the "
+        "fluid's measured against the liquids'; flows efflux, a dam break and the liquids' "
+        "pours; liquids a step's cost by liquid; coldstart the seconds a new process takes "
+        "to its first step",
+    )  # fmt: skip
+    p.add_argument("--out", help="flows: a folder for the figure (flows.png)")
+    p.add_argument(
+        "--spacing", type=float, default=0.005, help="viscosity: the particles' spacing, m"
+    )
+    p.add_argument(
+        "--part",
+        choices=["calibration", "liquids", "both"],
+        default="both",
+        help="viscosity: the calibration table, the liquids through the package's, or both",
     )
     p.add_argument("--sizes", help="comma-separated sizes (points, target vertices or particles)")
     p.add_argument(
@@ -207,6 +222,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--episodes", type=int, default=20, help="episodes per container")
     p.add_argument("--steps", type=int, default=250, help="most steps per episode")
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument(
+        "--liquids",
+        help="comma-separated liquids (water,milk,oil,syrup,honey): each container with "
+        "each, and a row per liquid",
+    )
 
     p = add(
         "pour",
@@ -261,6 +281,11 @@ def build_parser() -> argparse.ArgumentParser:
         default={},
         help="JSON of more environment arguments, over the model's own (its config.json's), "
         'e.g. \'{"spill_weight": 10}\' or \'{"holder": "panda"}\'',
+    )
+    p.add_argument(
+        "--liquids",
+        help="comma-separated liquids (water,milk,oil,syrup,honey): every container with "
+        "each, the same episodes, and a row per liquid",
     )
 
     p = add(
@@ -330,6 +355,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--target-amount", type=int, help="particles to pour (default: random)")
     p.add_argument("--out", default="docs/environments", help="output folder")
+    p.add_argument("--liquid", help="a liquid's preset (water, milk, oil, syrup, honey)")
 
     p = add(
         "demonstrations",

@@ -380,6 +380,23 @@ def _bench(args: argparse.Namespace) -> Output:
     if args.what == "accuracy":
         result = bench_accuracy()
         return (result, lambda: accuracy_table(result))
+    if args.what == "liquids":
+        from pour_gym.apps.bench.liquids import bench_liquid_cost, liquid_cost_table
+
+        result = bench_liquid_cost(repeats=args.repeats)
+        return (result, lambda: liquid_cost_table(result))
+    if args.what == "flows":
+        from pour_gym.apps.bench.liquids import bench_flows, flows_table
+
+        result = bench_flows(out=args.out)
+        return (result, lambda: flows_table(result))
+    if args.what == "viscosity":
+        from pour_gym.apps.bench.liquids import bench_viscosity, viscosity_table
+
+        result = bench_viscosity(
+            args.spacing, calibrate=args.part != "liquids", liquids=args.part != "calibration"
+        )
+        return (result, lambda: viscosity_table(result))
     if args.what == "coldstart":
         ids = args.envs.split(",") if args.envs else list(ENV_IDS)
         result = bench_coldstart(ids)
@@ -414,5 +431,11 @@ def cmd_soak(args: argparse.Namespace) -> Output:
             objects += user_meshes(cache_dir("soak"))
     if args.episodes < 1 or args.steps < 1:
         raise InputError("--episodes and --steps must be at least 1")
-    doc = soak(args.env, objects, args.episodes, args.steps, args.seed)
+    if args.liquids:
+        from pour_gym.apps.soak import soak_liquids
+
+        liquids = [x.strip() for x in args.liquids.split(",") if x.strip()]
+        doc = soak_liquids(liquids, args.env, objects, args.episodes, args.steps, args.seed)
+    else:
+        doc = soak(args.env, objects, args.episodes, args.steps, args.seed)
     return (doc, lambda: soak_table(doc))

@@ -97,6 +97,7 @@ def episode_gif(
     seed: int = 0,
     target_amount: int | None = None,
     episodes: int = 8,
+    liquid: str | None = None,
 ) -> dict:
     """Record an environment at work as a GIF named by its id (``pour-v0.gif``, ...).
 
@@ -112,6 +113,8 @@ def episode_gif(
         seed: the (first) episode's seed.
         target_amount: particles to pour (random in the environment's range if None).
         episodes: episodes of a one-step task.
+        liquid: a liquid's preset (:mod:`pour_gym.fluid.liquid`; the GIF is then
+            ``<id>-<liquid>.gif``), or None for the env's water.
 
     Returns:
         The last step's info, the video path and a ``text`` for the terminal.
@@ -131,8 +134,9 @@ def episode_gif(
         raise InputError(str(exc)) from None
     out.mkdir(parents=True, exist_ok=True)
     name = env_id.split("/")[-1]
+    more = {} if liquid is None else {"liquid": liquid}
     if task.pours:
-        env = make(env_id, render_mode="rgb_array")
+        env = make(env_id, render_mode="rgb_array", **more)
         options = {"source": source, "target": target}
         if target_amount is not None:
             options["target_amount"] = target_amount
@@ -144,13 +148,14 @@ def episode_gif(
         env.close()
         frames, info = episode.frames, episode.info
         text = (
-            f"{name}, scripted policy, {source} -> {target}: poured {info['poured']} "
+            f"{name}, scripted policy, {source} -> {target}"
+            f"{'' if liquid is None else ', ' + liquid}: poured {info['poured']} "
             f"particles ({info['poured_ml']:.1f} ml) for a target of {info['target_amount']} "
             f"({info['target_ml']:.1f} ml, tolerance {info['tolerance']}), spilled "
             f"{info['spilled']}, {'success' if info['is_success'] else 'failure'}"
         )
     else:
-        env = make(env_id, objects=[source], render_mode="rgb_array")
+        env = make(env_id, objects=[source], render_mode="rgb_array", **more)
         env.action_space.seed(seed)
         frames, right = [], 0
         for k in tqdm(range(episodes), desc="episodes", file=sys.stderr):
@@ -161,5 +166,6 @@ def episode_gif(
         env.close()
         info = episode.info
         text = f"{name}, random actions on {source}: {right} of {episodes} right"
-    video = write_video(frames, out / f"{slug}.gif", fps=10 if task.pours else 2)
+    stem = slug if liquid is None else f"{slug}-{liquid}"
+    video = write_video(frames, out / f"{stem}.gif", fps=10 if task.pours else 2)
     return {"info": info, "video": str(video), "text": f"{text}\n  wrote {video}"}

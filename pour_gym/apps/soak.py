@@ -184,14 +184,66 @@ def _episode(env, seed: int, steps: int, pour: bool) -> dict:
     return out
 
 
+def soak_liquids(
+    liquids: list[str],
+    env_id: str = POUR_V0,
+    objects: list[str] | None = None,
+    episodes: int = 20,
+    steps: int = 250,
+    seed: int = 0,
+) -> dict:
+    """:func:`soak` once per liquid (each container with each), the counts in all and by liquid.
+
+    Args:
+        liquids: liquids' preset names (:data:`pour_gym.fluid.liquid.PRESETS`).
+        env_id: as :func:`soak`.
+        objects: as :func:`soak`.
+        episodes: as :func:`soak`.
+        steps: as :func:`soak`.
+        seed: as :func:`soak` (the same per liquid: the same containers, starts and
+            actions, another liquid).
+
+    Returns:
+        :func:`soak`'s document over all liquids, ``by_object`` keyed ``"name [liquid]"``,
+        and ``by_liquid``: each liquid's totals.
+    """
+    from pour_gym.fluid.liquid import liquid_of
+
+    for name in liquids:
+        liquid_of(name)  # an unknown name fails before any work
+    docs = {name: soak(env_id, objects, episodes, steps, seed, {"liquid": name})
+            for name in liquids}  # fmt: skip
+    totals = {k: sum(d[k] for d in docs.values()) for k in COUNTS}
+    wall = sum(d["steps"] / d["steps_per_s"] for d in docs.values() if d["steps_per_s"] > 0)
+    return {
+        **totals,
+        "steps_per_s": totals["steps"] / wall if wall > 0 else 0.0,
+        "env": env_id,
+        "episodes_per_object": episodes,
+        "by_object": {
+            f"{obj} [{name}]": counts
+            for name, d in docs.items()
+            for obj, counts in d["by_object"].items()
+        },
+        "by_liquid": {
+            name: {k: d[k] for k in (*COUNTS, "steps_per_s")} for name, d in docs.items()
+        },
+        "errors": [f"[{name}] {e}" for name, d in docs.items() for e in d["errors"]][:10],
+    }
+
+
 def soak_table(doc: dict) -> str:
     """A markdown table of :func:`soak` per container, with the totals."""
     keys = COUNTS[:-1]  # not the steps
     rows = [
         [Path(name).name, *(counts[k] for k in keys)] for name, counts in doc["by_object"].items()
     ]
+    for liquid, counts in doc.get("by_liquid", {}).items():
+        rows.append([f"all [{liquid}]", *(counts[k] for k in keys)])
     rows.append(["**all**", *(f"**{doc[k]}**" for k in keys)])
     lines = [markdown_table(["container", *keys], rows)]
+    for liquid, counts in doc.get("by_liquid", {}).items():
+        lines.append(f"{liquid}: {counts['steps_per_s']:.1f} steps/s")
     lines.append(f"\n{doc['env']}, random actions: {doc['steps_per_s']:.1f} steps/s")
     if doc["errors"]:
         lines.append("\nfirst errors:\n" + "\n".join(f"- {e}" for e in doc["errors"]))

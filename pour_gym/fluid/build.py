@@ -1,6 +1,6 @@
 """The fluid kernel's builds: its driver compiled twice, on first use.
 
-:func:`pour_gym.fluid.kernel._advance` calls six passes with parallel loops
+:func:`pour_gym.fluid.kernel._advance` calls seven passes with parallel loops
 (``nb.prange``). It is compiled twice (:func:`builds`): calling the passes compiled
 without a threading layer (``"serial"``: a process that ran it may still fork), and
 calling their parallel builds (``"parallel"``). Both compute the same numbers bit for bit.
@@ -10,7 +10,7 @@ layer (:func:`pour_gym.io.numba_threads.use_wheel_tbb`) and creates the dispatch
 which compile on their first call or load from numba's on-disk cache; helper processes
 may have compiled them into that cache already (:mod:`pour_gym.fluid.precompile`).
 
-The kernel takes 54 arguments; :class:`KernelArguments` names them in four groups (the
+The kernel takes 58 arguments; :class:`KernelArguments` names them in four groups (the
 particles, the fluid's constants, the colliders' motion, scratch space) whose fields, in
 order, are the kernel's parameters (``tests/test_fluid.py`` checks).
 """
@@ -74,6 +74,7 @@ def builds() -> dict:
         kernel._pass_lambda,
         kernel._pass_correct,
         kernel._pass_collide,
+        kernel._pass_viscosity,
         kernel._pass_finish,
     )
     compiled = _compile_twice(passes, kernel._advance, kernel.NOALIAS)
@@ -108,7 +109,11 @@ class FluidConstants(NamedTuple):
     a particle's m / rho_0, m^3; ``eps``, ``scorr``, ``w_dq``: the constraint's
     relaxation, artificial pressure and its reference kernel value; ``iterations``,
     ``tension``, ``omega`` (over-relaxation), ``wall_on`` (wall density) and its
-    ``wall_table``, the particle ``radius`` (m) and the ``xsph`` coefficient.
+    ``wall_table``, the particle ``radius`` (m) and the ``xsph`` coefficient;
+    ``viscosity``: the kinematic viscosity of the implicit viscosity pass, m^2/s (0: none),
+    with its Laplacian's scale ``c_lap`` (1/m^2 over the kernel's unscaled weight) and
+    the Laplacian's diagonal at rest ``lap_rest``, 1/m^2; ``no_slip``: the walls hold the
+    viscous liquid (see :class:`PBFConfig`).
     """
 
     h_max: float
@@ -128,6 +133,10 @@ class FluidConstants(NamedTuple):
     wall_table: np.ndarray
     radius: float
     xsph: float
+    viscosity: float
+    c_lap: float
+    lap_rest: float
+    no_slip: bool
 
 
 class ColliderMotion(NamedTuple):

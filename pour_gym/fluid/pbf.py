@@ -61,7 +61,16 @@ class PBFConfig:
         relaxation: epsilon of the constraint's denominator, relative to its value at rest.
         scorr_k: artificial-pressure strength, relative to lambda at rest.
         scorr_dq: distance of the artificial pressure's reference, over the smoothing radius.
-        xsph: XSPH viscosity coefficient.
+        xsph: XSPH velocity smoothing (Schechter and Bridson's coefficient, no unit): the
+            method's own damping of water; 0 for a liquid given a ``viscosity``.
+        viscosity: kinematic viscosity of the implicit viscosity pass, in m^2/s (dynamic
+            viscosity over density; :class:`pour_gym.fluid.liquid.Liquid` converts); 0
+            for none. Below the method's own (about 1e-4 m^2/s at 5 mm,
+            ``docs/liquids.md``) it changes little.
+        no_slip: with a ``viscosity``, the containers' walls and the table hold the liquid
+            (the viscous pass sees the fluid beyond a wall moving with it): a viscous
+            liquid sticks to its cup, which is what makes it pour slowly. False: walls
+            let it slide, as they always do without a viscosity.
         max_travel: a substep moves no particle and no wall farther than this many
             particle radii (the CFL bound; walls are at least 3 mm thick).
         tension: how far below rest density the constraint still pulls particles together
@@ -89,12 +98,20 @@ class PBFConfig:
     scorr_k: float = 0.02
     scorr_dq: float = 0.2
     xsph: float = 0.05
+    viscosity: float = 0.0
+    no_slip: bool = True
     max_travel: float = 2.0
     tension: float = 0.0
     over_relaxation: float = 1.5
     wall_density: bool = True
     floor_friction: float = 20.0
     packing: float = 1.02
+
+    def __post_init__(self) -> None:
+        if not (np.isfinite(self.viscosity) and self.viscosity >= 0.0):
+            raise ValueError(
+                f"viscosity is a kinematic viscosity in m^2/s, 0 or more, not {self.viscosity}"
+            )
 
     @property
     def radius(self) -> float:
@@ -145,6 +162,34 @@ def _spiky_grad_scale(r, h):
     r = np.asarray(r, dtype=np.float64)
     d = np.where((r < h) & (r >= 1e-12), h - r, 0.0)
     return -45.0 / np.pi / (h * h * h * h * h * h) * d * d / np.maximum(r, 1e-12)
+
+
+def _lap_weight(r, h):
+    """The viscosity Laplacian's unscaled pair weight (the kernel's ``_lap_weight``), 1/m."""
+    r = np.asarray(r, dtype=np.float64)
+    return np.where(r < h, (h - r) ** 2 / np.maximum(r, 0.1 * h), 0.0)
+
+
+def laplacian_scale(spacing: float, h: float) -> tuple[float, float]:
+    """The viscosity Laplacian's scale and its diagonal on a cubic lattice at rest.
+
+    Brookshaw's form ``L f_i = sum_j c w(r_ij) (f_j - f_i)`` is exact on a quadratic when
+    ``c`` makes the lattice sum of ``w(r) z^2`` equal 2 (the Laplacian of ``z^2``); the
+    diagonal ``sum_j c w(r_ij)`` sets how many Jacobi sweeps the implicit step takes.
+
+    Args:
+        spacing: the lattice's spacing, m.
+        h: the smoothing radius, m.
+
+    Returns:
+        ``(c, diagonal)``: 1/m (times the weight's 1/m gives 1/m^2) and 1/m^2.
+    """
+    g = np.arange(-4, 5) * spacing
+    lattice = np.stack(np.meshgrid(g, g, g), -1).reshape(-1, 3)
+    r = np.linalg.norm(lattice, axis=1)
+    w = np.where(r > 0, _lap_weight(r, h), 0.0)
+    c = 2.0 / float(np.sum(w * lattice[:, 2] ** 2))
+    return c, c * float(w.sum())
 
 
 def wall_density_table(h: float, vol: float, samples: int = 64) -> np.ndarray:
@@ -239,6 +284,7 @@ class PBFluid:
         self._scorr = cfg.scorr_k / rest_sum
         self._w_dq = float(_poly6((cfg.scorr_dq * self.h) ** 2, self.h))
         self._wall_table = wall_density_table(self.h, self._vol)
+        self._c_lap, self._lap_rest = laplacian_scale(cfg.spacing, self.h)
         # The kernel's constants: all fixed by the config and the construction.
         self._constants = FluidConstants(
             h_max=float(cfg.substep),
@@ -258,9 +304,31 @@ class PBFluid:
             wall_table=self._wall_table,
             radius=float(cfg.radius),
             xsph=float(cfg.xsph),
+            viscosity=float(cfg.viscosity),
+            c_lap=self._c_lap,
+            lap_rest=self._lap_rest,
+            no_slip=bool(cfg.no_slip),
         )
         self.time = 0.0
         self.corrections = 0
+
+    def set_viscosity(self, config: PBFConfig) -> None:
+        """Take ``config``'s viscosity, XSPH and walls (another liquid's); the rest stays.
+
+        Raises:
+            ValueError: ``config`` differs from this fluid's in anything else (a spacing,
+                say: the particles would stand for other volumes).
+        """
+        free = {"viscosity": 0.0, "xsph": 0.0, "no_slip": True}
+        mine = {**self.config.to_dict(), **free}
+        theirs = {**config.to_dict(), **free}
+        if mine != theirs:
+            changed = sorted(k for k in mine if mine[k] != theirs[k])
+            raise ValueError(f"a liquid changes the viscosity and XSPH only, not {changed}")
+        self.config = config
+        self._constants = self._constants._replace(
+            xsph=float(config.xsph), viscosity=float(config.viscosity), no_slip=config.no_slip
+        )
 
     def _allocate(self, x: np.ndarray, v: np.ndarray | None) -> None:
         """Take new particle arrays and size the scratch buffers to them."""

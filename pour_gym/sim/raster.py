@@ -142,7 +142,13 @@ WATER_RGB = np.array([0.20, 0.45, 0.90])
 WATER_ALPHA = 0.85  # the cup behind the water shows a little
 
 
-def composite_water(rgb: np.ndarray, water: np.ndarray, f: float, smooth_px: float) -> None:
+def composite_water(
+    rgb: np.ndarray,
+    water: np.ndarray,
+    f: float,
+    smooth_px: float,
+    colour: tuple[float, float, float] | np.ndarray = WATER_RGB,
+) -> None:
     """Paint the water over a picture as one surface, lit by its smoothed depth.
 
     Screen-space fluid shading (van der Laan et al. 2009, much simplified): the spheres'
@@ -155,6 +161,7 @@ def composite_water(rgb: np.ndarray, water: np.ndarray, f: float, smooth_px: flo
         water: (H, W) z-depth of the water (``inf`` where there is none), m.
         f: focal length, pixels.
         smooth_px: the smoothing's standard deviation, pixels.
+        colour: the liquid's RGB in [0, 1] (:attr:`pour_gym.fluid.liquid.Liquid.color`).
     """
     mask = np.isfinite(water)
     if not mask.any():
@@ -181,10 +188,11 @@ def composite_water(rgb: np.ndarray, water: np.ndarray, f: float, smooth_px: flo
     half = light + np.array([0.0, 0.0, 1.0])
     half /= np.linalg.norm(half)
     spec = np.clip((nx * half[0] + ny * half[1] + nz * half[2]) / norm, 0.0, 1.0) ** 24
-    colour = WATER_RGB[None, None, :] * (0.45 + 0.6 * diffuse)[..., None] + 0.6 * spec[..., None]
-    colour = np.clip(colour * 255.0, 0.0, 255.0)
+    tint = np.asarray(colour, dtype=np.float64)[None, None, :]
+    lit = tint * (0.45 + 0.6 * diffuse)[..., None] + 0.6 * spec[..., None]
+    lit = np.clip(lit * 255.0, 0.0, 255.0)
     under = rgb[mask].astype(np.float64)
-    rgb[mask] = (WATER_ALPHA * colour[mask] + (1.0 - WATER_ALPHA) * under).astype(np.uint8)
+    rgb[mask] = (WATER_ALPHA * lit[mask] + (1.0 - WATER_ALPHA) * under).astype(np.uint8)
 
 
 def cluster_vertices(

@@ -28,6 +28,7 @@ from gymnasium import spaces
 from pour_gym.sim.camera import Camera, to_eye, water_smoothing
 from pour_gym.sim.raster import (
     DRAWN_RADIUS,
+    WATER_RGB,
     cluster_vertices,
     composite_water,
     draw_spheres,
@@ -208,6 +209,7 @@ class Sensor:
         table_color: tuple[float, float, float] | None,
         rng: np.random.Generator,
         rgb: bool = False,
+        liquid_rgb: tuple[float, float, float] = tuple(WATER_RGB),
     ) -> Frame:
         """Draw the bodies, the table and the particles.
 
@@ -219,6 +221,7 @@ class Sensor:
                 table.
             rng: the noise's generator (used only with ``depth_noise`` > 0).
             rgb: also paint colour.
+            liquid_rgb: the liquid's colour, RGB in [0, 1].
 
         Returns:
             The frame; its depth carries the sensor's noise.
@@ -260,7 +263,7 @@ class Sensor:
         if rgb:
             colour = self._paint(bodies, table_color, seg, shade, wet)
             smooth = water_smoothing(radius, f, eye_p)
-            composite_water(colour, np.where(wet & ~out, water, np.inf), f, smooth)
+            composite_water(colour, np.where(wet & ~out, water, np.inf), f, smooth, liquid_rgb)
         return Frame(depth=z, segment=seg, rgb=colour)
 
     def _draw_table(self, light: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -219,6 +219,20 @@ class World:
         else:
             self.fluid = BulletFluid(self.client, empty, self.config)
 
+    def set_liquid(self, config: PBFConfig) -> None:
+        """Take a liquid's fluid parameters (:meth:`pour_gym.fluid.liquid.Liquid.fluid_config`).
+
+        Raises:
+            InputError: a viscous liquid in a ``bullet`` world (rigid spheres have none).
+        """
+        if config == self.config:
+            return
+        if self.fluid_kind != "pbf":
+            raise InputError("liquids other than water need fluid='pbf' (rigid spheres have no "
+                             "viscosity)")  # fmt: skip
+        self.fluid.set_viscosity(config)
+        self.config = config
+
     @property
     def client(self) -> BulletClient:
         """The world's pybullet client, with the table and a body per container.

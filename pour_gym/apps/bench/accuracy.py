@@ -74,10 +74,9 @@ def accuracy_table(result: dict) -> str:
     wave = result.get("shear")
     if wave:
         tables += "\n\n" + markdown_table(
-            ["shear wave: length, cm", "speed, m/s", "frequency, rad/s", "decay, 1/s",
-             "shear wave speed, m/s (a liquid: 0)", "viscosity it means, m^2/s (water 1e-6)"],
+            ["shear wave: length, cm", "speed, m/s", "elastic wave speed, m/s (a liquid: 0)",
+             "viscosity, m^2/s (water 1e-6)"],
             [[f"{wave['wavelength'] * 100:.0f}", f"{wave['amplitude']:.3f}",
-              f"{wave['frequency']:.2f}", f"{wave['decay']:.2f}", f"{wave['wave_speed']:.3f}",
-              f"{wave['viscosity']:.2e}"]],
+              f"{wave['wave_speed']:.3f}", f"{wave['viscosity']:.2e}"]],
         )  # fmt: skip
     return tables
