@@ -225,11 +225,14 @@ def test_a_child_forked_after_openmp_runs_on_one_thread(tmp_path):
     assert all("forkserver" in m for m in result["warnings"])
 
 
-def test_same_start_same_particles_bit_for_bit(cup_sdf):
-    """The same start gives the same particles, and so do the serial and parallel builds."""
+@pytest.mark.parametrize("liquid", ["water", "honey"])
+def test_same_start_same_particles_bit_for_bit(cup_sdf, liquid):
+    """The same start gives the same particles, and so do the serial and parallel builds;
+    honey too (its viscosity pass and no-slip walls)."""
+    from pour_gym.fluid.liquid import PRESETS
 
     def run(threads):
-        cfg = PBFConfig()
+        cfg = PRESETS[liquid].fluid_config()
         fluid = PBFluid(column(cfg.spacing, 0.03), cfg, num_threads=threads)
         fluid.add_collider(cup_sdf)
         fluid.wait_for_kernel()  # the parallel build, not the serial one standing in for it

@@ -4,9 +4,10 @@ A :class:`Liquid` is what a user names (``liquid="honey"`` on any env); its
 :meth:`Liquid.fluid_config` is what the kernel runs. The position-based fluid has a
 viscosity of its own (its density projection damps shear flow; ``docs/liquids.md``
 measures it with :func:`pour_gym.fluid.validation.shear_wave`): at the default 5 mm
-spacing about 1.8e-3 m^2/s, what a liquid of 1.8 Pa s at water's density has. A liquid
-less viscous than that (water, milk, oil) flows as the method's water does, and the
-config is water's (bit for bit Pour-v0's); a more viscous one (syrup, honey) gets the
+spacing 1.35e-3 m^2/s with XSPH and 1.7e-3 without, what a liquid of 1.4-1.7 Pa s at
+water's density has. A liquid less viscous than that (water, milk, oil) flows as the
+method's water does, and the config is water's (bit for bit Pour-v0's); a more viscous
+one (syrup, honey) gets the
 implicit viscosity pass (:func:`pour_gym.fluid.kernel._pass_viscosity`) set so that the
 fluid's total, as the shear wave measures it, is the liquid's: the pass's value is read
 off :data:`CALIBRATION`, the measured total against the value set.
@@ -19,8 +20,8 @@ Presets, at 20 C (the viscosity of foods varies with their make; these are typic
   and Technology, 2nd ed., 2006, ch. 8).
 - ``oil`` (olive): 910 kg/m^3, 0.080 Pa s (Diamante and Lan, J. Food Processing 2014,
   234583: absolute viscosities of vegetable oils, 20 C).
-- ``syrup`` (light corn syrup): 1380 kg/m^3, 2.5 Pa s (typical of glucose syrups of 80 %
-  solids at 20 C; Steffe, Rheological Methods in Food Process Engineering, 1996, app.).
+- ``syrup`` (light corn syrup): 1380 kg/m^3, 2.5 Pa s (typical of glucose syrups of about
+  80 % solids at 20 C; makers give 2-5 Pa s).
 - ``honey``: 1420 kg/m^3, 10 Pa s (Yanniotis, Skaltsi and Karaburnioti, J. Food
   Engineering 72, 2006: honeys of 17 % moisture at 20 C).
 """
@@ -47,8 +48,8 @@ CALIBRATION: dict[float, tuple[tuple[float, ...], tuple[float, ...]]] = {
     ),
 }
 # A liquid this thin (m^2/s; water 1e-6, milk 2e-6) is below the method's own viscosity at
-# any spacing measured (the least: 5e-4 m^2/s): at a spacing with no calibration it flows
-# as the method's water, where a thicker one is refused.
+# any spacing measured (the least: 5.3e-4 m^2/s, at 3.5 mm): at a spacing with no
+# calibration it flows as the method's water, where a thicker one is refused.
 WATER_LIKE = 1e-5
 
 

@@ -65,7 +65,7 @@ class PBFConfig:
             method's own damping of water; 0 for a liquid given a ``viscosity``.
         viscosity: kinematic viscosity of the implicit viscosity pass, in m^2/s (dynamic
             viscosity over density; :class:`pour_gym.fluid.liquid.Liquid` converts); 0
-            for none. Below the method's own (about 1e-4 m^2/s at 5 mm,
+            for none. Below the method's own (1.7e-3 m^2/s at 5 mm without XSPH,
             ``docs/liquids.md``) it changes little.
         no_slip: with a ``viscosity``, the containers' walls and the table hold the liquid
             (the viscous pass sees the fluid beyond a wall moving with it): a viscous
