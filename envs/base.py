@@ -28,7 +28,7 @@ from pour_gym.envs.containers import ContainerStore, release
 from pour_gym.envs.observations import VECTOR_MODES, parse_obs_mode
 from pour_gym.errors import InputError
 from pour_gym.fluid import precompile
-from pour_gym.fluid.liquid import Liquid, liquids_of
+from pour_gym.fluid.liquid import Liquid, LiquidRange, liquids_of
 from pour_gym.fluid.pbf import PBFConfig, default_threads
 from pour_gym.fluid.sdf import SignedDistanceField
 from pour_gym.perception import PERCEPTIONS, perceived_asset
@@ -65,8 +65,9 @@ class PourGymEnv(gym.Env, EzPickle):
             ``depth``, ``rgb`` and ``points`` observation modes.
         liquid: what is poured (:mod:`pour_gym.fluid.liquid`): a preset's name (``water``,
             ``milk``, ``oil``, ``syrup``, ``honey``), a ``Liquid``, a dict of its fields,
-            or a list of them (or ``"water,honey"``) to draw each episode's from, seeded;
-            None for water. ``info["liquid"]`` names the episode's.
+            a range (``{"viscosity": [2, 10], "density": 1400}``: Pa s drawn log-uniformly
+            per episode), or a list of them (or ``"water,honey"``) to draw each episode's
+            from, seeded; None for water. ``info["liquid"]`` names the episode's.
     """
 
     metadata: ClassVar[dict] = {"render_modes": RENDER_MODES, "render_fps": 10}
@@ -114,11 +115,20 @@ class PourGymEnv(gym.Env, EzPickle):
         # Each liquid's fluid parameters, made now: a liquid the fluid cannot take (a spacing
         # with no calibration, rigid spheres) is refused before any work.
         self.liquids = liquids_of(liquid)
-        self._liquid_configs = [x.fluid_config(self.fluid_config) for x in self.liquids]
-        if fluid != "pbf" and any(c != self.fluid_config for c in self._liquid_configs):
+        # A range's configs are made as its liquids are drawn; its ends are checked now.
+        self._liquid_configs = [
+            x.fluid_config(self.fluid_config) if isinstance(x, Liquid) else None
+            for x in self.liquids
+        ]
+        checked = [c for c in self._liquid_configs if c is not None] + [
+            end.fluid_config(self.fluid_config)
+            for x in self.liquids if isinstance(x, LiquidRange) for end in x.ends()
+        ]  # fmt: skip
+        if fluid != "pbf" and any(c != self.fluid_config for c in checked):
             raise InputError("liquids other than water need fluid='pbf' (rigid spheres have no "
                              "viscosity)")  # fmt: skip
-        self.liquid: Liquid = self.liquids[0]
+        first = self.liquids[0]
+        self.liquid: Liquid = first if isinstance(first, Liquid) else first.ends()[0]
         self.num_threads = None if num_threads is None else int(num_threads)
         self.render_mode = render_mode
         self.camera = camera
@@ -295,9 +305,13 @@ class PourGymEnv(gym.Env, EzPickle):
         # The episode's liquid: drawn only when there is a choice, so that one liquid
         # leaves the episode's draws (and water's episodes, bit for bit) as they were.
         choice = int(self.np_random.integers(len(self.liquids))) if len(self.liquids) > 1 else 0
-        self.liquid = self.liquids[choice]
+        picked, config = self.liquids[choice], self._liquid_configs[choice]
+        if isinstance(picked, LiquidRange):
+            picked = picked.draw(self.np_random)
+            config = picked.fluid_config(self.fluid_config)
+        self.liquid = picked
         if self.fluid == "pbf":
-            self.world.set_liquid(self._liquid_configs[choice])
+            self.world.set_liquid(config)
         if seed is not None or self._sensor_rng is None:
             # The sensors' noise and point sampling have a stream of their own, spawned
             # from the episode seed: with or without sensors, a seed gives the same episodes.

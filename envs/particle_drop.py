@@ -74,7 +74,7 @@ class ParticleDropEnv(PourGymEnv):
     | ``spill_weight`` | float | 2.0 | weight of ``spill`` |
     | ``render_mode`` | str or None | None | ``"rgb_array"`` or ``"human"`` |
     | ``sensor_config`` | SensorConfig or dict | None | image size, points, noise |
-    | ``liquid`` | str, Liquid, dict or list | None | what is poured; a list: drawn per episode |
+    | ``liquid`` | str, Liquid, dict or list | None | what is poured; a list or range: per episode |
 
     ``reset(options=...)`` accepts ``container`` (a name or mesh path), ``spawn`` (xyz in
     the container's frame, m) and ``fill`` (fraction of the volume).

@@ -159,7 +159,7 @@ class PourEnv(PourGymEnv):
     | ``scan_seed`` | int | 0 | the scan's noise seed (``perception="scan"``) |
     | ``render_mode`` | str or None | None | ``"rgb_array"`` or ``"human"`` |
     | ``sensor_config`` | SensorConfig or dict | None | image size, points, noise |
-    | ``liquid`` | str, Liquid, dict or list | None | what is poured; a list: drawn per episode |
+    | ``liquid`` | str, Liquid, dict or list | None | what is poured; a list or range: per episode |
     | ``holder`` | str | ``"free"`` | what holds the source (:mod:`pour_gym.envs.holders`) |
     | ``**holder_kwargs`` | | | the holder's own arguments |
 

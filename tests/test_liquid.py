@@ -48,6 +48,25 @@ def test_a_bad_liquid_is_refused_by_name(value, message):
         liquids_of(value)
 
 
+def test_a_range_of_liquids_draws_viscosities_log_uniformly_and_checks_its_ends():
+    """``{"viscosity": [lo, hi], "density": rho}``: each draw a liquid within the range, the
+    same for the same generator, about as many per decade; bad ranges refused by name."""
+    from pour_gym.fluid.liquid import LiquidRange
+
+    (rng_liquid,) = liquids_of({"name": "thick", "viscosity": [2.0, 20.0], "density": 1400})
+    assert isinstance(rng_liquid, LiquidRange)
+    drawn = [rng_liquid.draw(np.random.default_rng(s)) for s in range(400)]
+    mus = np.array([x.viscosity for x in drawn])
+    assert mus.min() >= 2.0 and mus.max() <= 20.0 and all(x.density == 1400 for x in drawn)
+    assert 0.4 < np.mean(mus < np.sqrt(40.0)) < 0.6  # the geometric middle halves them
+    assert drawn[7] == rng_liquid.draw(np.random.default_rng(7))
+    assert drawn[0].name.startswith("thick ") and drawn[0].name.endswith(" Pa s")
+    with pytest.raises(InputError, match=r"viscosity low 5\.0 above high 2\.0"):
+        liquids_of({"viscosity": [5.0, 2.0], "density": 1000})
+    with pytest.raises(InputError, match="number or \\[low, high\\]"):
+        liquids_of({"viscosity": [1, 2, 3], "density": 1000})
+
+
 def test_lists_and_strings_of_liquids():
     assert [x.name for x in liquids_of("water, honey")] == ["water", "honey"]
     custom = liquids_of([{"name": "glycerol", "density": 1260, "viscosity": 1.4}, "oil"])
@@ -136,6 +155,11 @@ def test_an_env_pours_honey_and_draws_liquids_per_episode():
         observations.append(obs)
         env.close()
     assert np.array_equal(observations[0], observations[1])
+    ranged = {"viscosity": [2.0, 10.0], "density": 1400}
+    env = gym.make("PourGym/Pour-v0", liquid=ranged, **kw)
+    names = {env.reset(seed=s)[1]["liquid"] for s in range(4)}
+    assert len(names) == 4 and all(n.startswith("range ") for n in names)
+    env.close()
     env = gym.make("PourGym/Pour-v0", liquid="honey", objects="red_cup", num_threads=1)
     _, info = env.reset(seed=0, options={"target_ml": 20.0})
     assert info["target_amount"] == 160 and info["target_ml"] == pytest.approx(20.0)

@@ -183,12 +183,78 @@ def liquid_of(value: str | Liquid | dict) -> Liquid:
     )
 
 
-def liquids_of(value: str | Liquid | dict | Sequence | None) -> tuple[Liquid, ...]:
+@dataclass(frozen=True)
+class LiquidRange:
+    """Liquids drawn per episode: a viscosity log-uniform in a range, a density uniform.
+
+    Attributes:
+        name: what the drawn liquids are called (``info["liquid"]`` is the name and the
+            viscosity drawn, e.g. ``"range 3.2 Pa s"``).
+        viscosity: (low, high) dynamic viscosity, Pa s.
+        density: (low, high) kg/m^3 (equal ends for one density).
+        color: RGB in [0, 1], for pictures.
+    """
+
+    name: str
+    viscosity: tuple[float, float]
+    density: tuple[float, float]
+    color: tuple[float, float, float] = (0.75, 0.42, 0.10)
+
+    def __post_init__(self) -> None:
+        for key in ("viscosity", "density"):
+            low, high = getattr(self, key)
+            if not low <= high:
+                raise InputError(f"liquid range {self.name!r}: {key} low {low} above high {high}")
+        for mu, rho in ((self.viscosity[0], self.density[0]), (self.viscosity[1],
+                                                               self.density[1])):  # fmt: skip
+            Liquid(self.name, rho, mu, self.color)  # each end a liquid (checked there)
+
+    def draw(self, rng: np.random.Generator) -> Liquid:
+        """One liquid of the range, from ``rng``."""
+        low, high = np.log(self.viscosity[0]), np.log(self.viscosity[1])
+        mu = float(np.exp(rng.uniform(low, high))) if high > low else self.viscosity[0]
+        rho = float(rng.uniform(*self.density)) if self.density[1] > self.density[0] else (
+            self.density[0])  # fmt: skip
+        return Liquid(f"{self.name} {mu:.3g} Pa s", rho, mu, self.color)
+
+    def ends(self) -> tuple[Liquid, Liquid]:
+        """The range's least and most viscous liquids (for checks ahead of the episodes)."""
+        return (Liquid(self.name, self.density[0], self.viscosity[0], self.color),
+                Liquid(self.name, self.density[1], self.viscosity[1], self.color))  # fmt: skip
+
+
+def _range_of(value: dict) -> LiquidRange:
+    """A :class:`LiquidRange` from a dict whose viscosity (or density) is a [low, high]."""
+    names = {"name", "viscosity", "density", "color"}
+    unknown = sorted(set(value) - names)
+    if unknown or "viscosity" not in value or "density" not in value:
+        raise InputError(
+            "a liquid range has viscosity (Pa s) and density (kg/m^3), each a number or "
+            f"[low, high], and optionally name and color; unknown {unknown}"
+        )
+
+    def pair(x, key) -> tuple[float, float]:
+        if isinstance(x, (int, float)):
+            return float(x), float(x)
+        if isinstance(x, (list, tuple)) and len(x) == 2:
+            return float(x[0]), float(x[1])
+        raise InputError(f"a liquid range's {key} is a number or [low, high], not {x!r}")
+
+    extra = {"color": value["color"]} if "color" in value else {}
+    return LiquidRange(str(value.get("name", "range")), pair(value["viscosity"], "viscosity"),
+                       pair(value["density"], "density"), **extra)  # fmt: skip
+
+
+def liquids_of(
+    value: str | Liquid | dict | Sequence | None,
+) -> tuple[Liquid | LiquidRange, ...]:
     """The liquids an env draws its episodes' liquid from (one: every episode's).
 
     Args:
-        value: one liquid (see :func:`liquid_of`), a comma-separated string of presets
-            (``"water,honey"``), or a list of liquids; None for water.
+        value: one liquid (see :func:`liquid_of`), a range (a dict whose ``viscosity`` is
+            [low, high] Pa s, drawn log-uniformly per episode; its ``density`` a number or
+            [low, high]), a comma-separated string of presets (``"water,honey"``), or a
+            list of these; None for water.
 
     Raises:
         InputError: an empty list, or an entry that is not a liquid.
@@ -200,5 +266,11 @@ def liquids_of(value: str | Liquid | dict | Sequence | None) -> tuple[Liquid, ..
     if isinstance(value, (list, tuple)):
         if not value:
             raise InputError("liquid is a list of at least one liquid, not an empty one")
-        return tuple(liquid_of(v) for v in value)
+        return tuple(x for v in value for x in liquids_of(v))
+    if isinstance(value, LiquidRange):
+        return (value,)
+    if isinstance(value, dict) and any(
+        isinstance(value.get(k), (list, tuple)) for k in ("viscosity", "density")
+    ):
+        return (_range_of(value),)
     return (liquid_of(value),)
