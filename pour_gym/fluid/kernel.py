@@ -627,7 +627,7 @@ def _pass_collide(p, src, prev, x, v, vn, hs, limit, radius, floor, has_floor, c
 
 def _pass_viscosity(vn, v, b, vw, p, nbr, nbr_count, pair_g, lam, h, c_lap, lap_rest, nu_hs,
                     sweeps, no_slip, fvals, fint, fgeo, rot_s, tr_s, rot_e, tr_e, hs, floor,
-                    has_floor, chunks):  # fmt: skip
+                    has_floor, near, prev, chunks):  # fmt: skip
     """Implicit viscosity: ``sweeps`` Jacobi sweeps of (1 - nu hs L) v = vn, into ``vn``.
 
     ``L`` is the SPH Laplacian in Brookshaw's form (:func:`_lap_weight`), ``nu_hs`` the
@@ -638,13 +638,16 @@ def _pass_viscosity(vn, v, b, vw, p, nbr, nbr_count, pair_g, lam, h, c_lap, lap_
     iterate and its walls' velocities, so no number of sweeps and no viscosity can make it
     grow: stable from water to honey. ``b``, ``v``, ``vw``, ``pair_g`` and ``lam`` are
     scratch (the start velocities, the next iterate, the walls' weighted velocities, the
-    pair weights and the weights' sums).
+    pair weights and the weights' sums). ``near`` bounds each wall's distance at the
+    predicted positions ``prev + v hs`` (the predict pass's; ``v`` still holds the
+    velocities it predicted with when the weights are made): a wall that cannot be within
+    h of where the particle is now is not sampled.
     """
     n = vn.shape[0]
     for t in nb.prange(chunks):
         _visc_weights(t * n // chunks, (t + 1) * n // chunks, vn, b, vw, p, nbr, nbr_count,
                       pair_g, lam, h, c_lap, lap_rest, no_slip, fvals, fint, fgeo, rot_s,
-                      tr_s, rot_e, tr_e, hs, floor, has_floor)  # fmt: skip
+                      tr_s, rot_e, tr_e, hs, floor, has_floor, near, prev, v)  # fmt: skip
     for _ in range(sweeps):
         for t in nb.prange(chunks):
             _visc_sweep(t * n // chunks, (t + 1) * n // chunks, vn, v, b, vw, nbr, nbr_count,
@@ -687,7 +690,7 @@ def _wall_lap(d, h, lap_rest):
 @nb.njit(cache=PART_CACHE, fastmath=FASTMATH, error_model="numpy", **NO_REFCOUNT, **NOALIAS)
 def _visc_weights(lo, hi, vn, b, vw, p, nbr, nbr_count, pair_g, lam, h, c_lap, lap_rest,
                   no_slip, fvals, fint, fgeo, rot_s, tr_s, rot_e, tr_e, hs, floor,
-                  has_floor):  # fmt: skip
+                  has_floor, near, prev, v):  # fmt: skip
     """Particles lo to hi of :func:`_pass_viscosity`'s set-up: start velocities, weights."""
     for i in range(lo, hi):
         total = 0.0
@@ -704,7 +707,15 @@ def _visc_weights(lo, hi, vn, b, vw, p, nbr, nbr_count, pair_g, lam, h, c_lap, l
         wz = 0.0
         if no_slip:
             px, py, pz = p[i, 0], p[i, 1], p[i, 2]
+            # How far the particle is from where the predict pass bounded the walls'
+            # distances (a field's distance changes by at most twice the way moved).
+            mx = px - (prev[i, 0] + v[i, 0] * hs)
+            my = py - (prev[i, 1] + v[i, 1] * hs)
+            mz = pz - (prev[i, 2] + v[i, 2] * hs)
+            moved = 2.0 * np.sqrt(mx * mx + my * my + mz * mz) + 1e-6
             for k in range(fint.shape[0]):
+                if near[i, k] - moved >= h:
+                    continue
                 qx, qy, qz = _to_local(rot_e[k], tr_e[k], px, py, pz)
                 if _floor_of(fgeo, k, qx, qy, qz) >= h:
                     continue
@@ -864,7 +875,8 @@ def _advance(
             # lists are made.
             _pass_viscosity(vn, v, p2, sorted_p, p, nbr, nbr_count, pair_g, lam, h, c_lap,
                             lap_rest, viscosity * hs, sweeps, no_slip, fvals, fint, fgeo,
-                            rot_s, tr_s, rot_e, tr_e, hs, floor, has_floor, chunks)  # fmt: skip
+                            rot_s, tr_s, rot_e, tr_e, hs, floor, has_floor, near, prev,
+                            chunks)  # fmt: skip
         _pass_finish(x, v, vn, p, nbr, nbr_count, h, xsph, floor, has_floor, radius,
                      np.exp(-floor_decay * hs), chunks)  # fmt: skip
         t += hs
