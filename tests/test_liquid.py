@@ -208,7 +208,7 @@ def test_honey_pours_later_slower_and_longer_than_water():
     """The red cup tilted at 30 deg/s to 110 deg, held, set upright: honey starts later
     (at a larger tilt), flows at a lower peak rate, leaves some in the cup, and its stream
     runs on after the cup turns back, where water's stops."""
-    from pour_gym.fluid.validation import liquid_pour
+    from pour_gym.sim.liquid_pour import liquid_pour
 
     water = liquid_pour("water", num_threads=1)
     honey = liquid_pour("honey", num_threads=1)

@@ -13,7 +13,7 @@
 
 :func:`bench_flows`: water draining through a hole (Torricelli), a dam break (Martin and
 Moyce), and each preset poured from the red cup (:func:`pour_gym.fluid.validation.efflux`,
-``dam_break``, ``liquid_pour``), with a figure of each.
+``dam_break``; :func:`pour_gym.sim.liquid_pour.liquid_pour`), with a figure of each.
 """
 
 from __future__ import annotations
@@ -111,7 +111,8 @@ def bench_flows(liquids: tuple[str, ...] = ("water", "oil", "syrup", "honey"), o
     from dataclasses import asdict
 
     from pour_gym.fluid.liquid import PRESETS
-    from pour_gym.fluid.validation import dam_break, efflux, liquid_pour
+    from pour_gym.fluid.validation import dam_break, efflux
+    from pour_gym.sim.liquid_pour import liquid_pour
 
     def plain(result) -> dict:
         return {k: v.tolist() if hasattr(v, "tolist") else v for k, v in asdict(result).items()}
