@@ -648,10 +648,14 @@ def _pass_viscosity(vn, v, b, vw, p, nbr, nbr_count, pair_g, lam, h, c_lap, lap_
         _visc_weights(t * n // chunks, (t + 1) * n // chunks, vn, b, vw, p, nbr, nbr_count,
                       pair_g, lam, h, c_lap, lap_rest, no_slip, fvals, fint, fgeo, rot_s,
                       tr_s, rot_e, tr_e, hs, floor, has_floor, near, prev, v)  # fmt: skip
+    # The iterates alternate between vn and v (no copy a sweep); an odd count ends in v.
+    src, dst = vn, v
     for _ in range(sweeps):
         for t in nb.prange(chunks):
-            _visc_sweep(t * n // chunks, (t + 1) * n // chunks, vn, v, b, vw, nbr, nbr_count,
-                        pair_g, lam, nu_hs)  # fmt: skip
+            _visc_sweep(t * n // chunks, (t + 1) * n // chunks, src, dst, b, vw, nbr,
+                        nbr_count, pair_g, lam, nu_hs)  # fmt: skip
+        src, dst = dst, src
+    if sweeps % 2 == 1:
         for i in nb.prange(n):
             for a in range(3):
                 vn[i, a] = v[i, a]

@@ -134,15 +134,6 @@ class Liquid:
         """
         return self.fluid_config(base).viscosity > 0.0
 
-    def to_dict(self) -> dict:
-        """The liquid as JSON-serialisable data (``info["liquid"]``)."""
-        return {
-            "name": self.name,
-            "density": self.density,
-            "viscosity": self.viscosity,
-            "kinematic_viscosity": self.kinematic_viscosity,
-        }
-
 
 PRESETS: dict[str, Liquid] = {
     "water": Liquid("water", 998.2, 1.002e-3, (0.20, 0.45, 0.90)),
