@@ -11,9 +11,11 @@ from pour_gym.envs.holders import HeldScene, make_holder
 from pour_gym.envs.observations import VECTOR_MODES, parse_obs_mode, vector_mode
 from pour_gym.envs.pour_observation import (
     FEATURE_NAMES,
+    FLOW_NAME,
     OBS_LIMIT,
     STATE_NAMES,
     feature_vector,
+    out_flow,
     state_vector,
 )
 from pour_gym.envs.rules import (
@@ -78,7 +80,10 @@ class PourEnv(PourGymEnv):
     heights from their labels, and the fluid left in the source over the target amount.
     ``obs_mode="state"``: ``Box(-10, 10, (19,), float32)``, see ``STATE_NAMES``: raw
     positions (m), tilt (rad), the target's yaw, bounding-box sizes (in 10 cm), particle
-    counts over the initial fill; no warped features. ``hide`` names entries that read 0 in
+    counts over the initial fill; no warped features. ``observe_flow=True`` appends
+    ``out_flow`` to either: the particles that left the source over the last step, over the
+    target amount (the flow the scripted expert regulates; one observation alone does not
+    give it). ``hide`` names entries that read 0 in
     either mode (the space keeps its shape): a learner kept blind to, say, the containers'
     sizes, which are constants when it trains on one cup. The sensor modes
     (``"depth"``, ``"rgb"``, ``"points"``; :mod:`pour_gym.sim.sensors`) are what a head
@@ -160,6 +165,7 @@ class PourEnv(PourGymEnv):
     | ``render_mode`` | str or None | None | ``"rgb_array"`` or ``"human"`` |
     | ``sensor_config`` | SensorConfig or dict | None | image size, points, noise |
     | ``liquid`` | str, Liquid, dict or list | None | what is poured; a list or range: per episode |
+    | ``observe_flow`` | bool | False | add ``out_flow`` to a vector observation (see above) |
     | ``holder`` | str | ``"free"`` | what holds the source (:mod:`pour_gym.envs.holders`) |
     | ``**holder_kwargs`` | | | the holder's own arguments |
 
@@ -181,6 +187,7 @@ class PourEnv(PourGymEnv):
       from per episode, seeded;
       ``info["liquid"]``; docs/liquids.md): water, the default, is the fluid as it was, bit
       for bit; syrup and honey add a viscosity in its unit and walls that hold them.
+      ``observe_flow`` added (off by default: the observation as it was).
     * v1: the same class, task and physics as v0 with the defaults under which a standard
       learner learns the task from its reward (docs: learning from the reward):
       ``tilt_control="angle"`` (a zero action holds 57.5 deg, so exploration reaches the
@@ -257,45 +264,14 @@ class PourEnv(PourGymEnv):
         render_mode: str | None = None,
         sensor_config: SensorConfig | dict | None = None,
         liquid: str | Liquid | dict | list | None = None,
+        observe_flow: bool = False,
         holder: str = "free",
         **holder_kwargs,
     ):
-        EzPickle.__init__(
-            self,
-            objects=objects,
-            source_objects=source_objects,
-            target_objects=target_objects,
-            obs_mode=obs_mode,
-            fluid=fluid,
-            fluid_config=fluid_config,
-            num_threads=num_threads,
-            source_particles=source_particles,
-            amount_range=amount_range,
-            max_speed=max_speed,
-            max_tilt_rate=max_tilt_rate,
-            max_tilt=max_tilt,
-            tilt_control=tilt_control,
-            lip_control=lip_control,
-            pour_threshold=pour_threshold,
-            pour_steps=pour_steps,
-            progress_weight=progress_weight,
-            overshoot_weight=overshoot_weight,
-            spill_weight=spill_weight,
-            success_weight=success_weight,
-            time_weight=time_weight,
-            aim_weight=aim_weight,
-            upright_weight=upright_weight,
-            tilt_weight=tilt_weight,
-            control_weight=control_weight,
-            hide=hide,
-            perception=perception,
-            scan_seed=scan_seed,
-            render_mode=render_mode,
-            sensor_config=sensor_config,
-            liquid=liquid,
-            holder=holder,
-            **holder_kwargs,
-        )
+        # Every argument, as given (pickling and copying remake the env from them).
+        args = {k: v for k, v in locals().items() if k not in ("self", "__class__")}
+        args.pop("holder_kwargs")
+        EzPickle.__init__(self, **args, **holder_kwargs)
         self.holder = make_holder(holder, **holder_kwargs)
         self.solid = self.holder.solid
         super().__init__(
@@ -363,11 +339,13 @@ class PourEnv(PourGymEnv):
         self.pour_threshold = int(pour_threshold)
         self.pour_steps = int(pour_steps)
         self.dt = 0.1
+        self.observe_flow = bool(observe_flow)
         vector = vector_mode(modes)
         self.obs_names = ()
         if vector:
             names = FEATURE_NAMES if vector == "features" else STATE_NAMES
-            self.obs_names = names + self.holder.obs_names
+            flow = (FLOW_NAME,) if observe_flow else ()
+            self.obs_names = names + flow + self.holder.obs_names
         hide = (hide,) if isinstance(hide, str) else tuple(hide)
         unknown = sorted(set(hide) - set(self.obs_names))
         if unknown:
@@ -429,6 +407,7 @@ class PourEnv(PourGymEnv):
         self._corrections = 0
         self._substeps = 0
         self._counts = self._count_now()
+        self._flow = 0.0
         self._potentials = self._potential()
         self.camera = self.holder.camera(self.lip, self.target_pos) or self.camera
         return self._observation(), self._info()
@@ -443,6 +422,7 @@ class PourEnv(PourGymEnv):
         self._corrections = self.world.corrections
         prev, c = self._counts, self._count_now()
         self._counts = c
+        self._flow = out_flow(prev, c, self.target_amount)
         out = self.fill - c["in_source"]
         self._out_run = self._out_run + 1 if out >= self.pour_threshold else 0
         self._poured_any = self._poured_any or self._out_run >= self.pour_steps
@@ -559,6 +539,7 @@ class PourEnv(PourGymEnv):
                 np.ptp(seen_s.surface.bounds, axis=0), np.ptp(seen_t.surface.bounds, axis=0),
                 c, self.fill, self.target_amount,
             )  # fmt: skip
+        obs += [self._flow] if self.observe_flow else []
         obs = np.clip(np.asarray(obs, dtype=np.float32), -OBS_LIMIT, OBS_LIMIT)
         held = self.holder.observation()
         if held is None:

@@ -51,8 +51,22 @@ STATE_NAMES = (
     "spilled",
     "target_amount",
 )
+# With observe_flow: the particles that left the source over the last step, over the target
+# amount (the flow the scripted expert regulates: a difference of two steps' counts).
+FLOW_NAME = "out_flow"
 # Every observation entry is clipped to +-this.
 OBS_LIMIT = 10.0
+
+
+def out_flow(prev: dict, counts: dict, target_amount: int) -> float:
+    """The ``FLOW_NAME`` entry: particles out of the source over a step, over the amount.
+
+    Args:
+        prev: the counts before the step (``in_source``).
+        counts: the counts after it.
+        target_amount: particles.
+    """
+    return (prev["in_source"] - counts["in_source"]) / target_amount
 
 
 def feature_vector(

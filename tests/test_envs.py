@@ -230,6 +230,35 @@ def test_the_scripted_policy_pours_through_the_target_lip_control(make_env):
         assert info["is_success"] and info["spilled"] == 0, info
 
 
+@pytest.mark.parametrize("obs_mode", ["features", "state"])
+def test_observe_flow_adds_the_particles_out_of_the_source_per_step(obs_mode, make_env):
+    """out_flow is the drop of in_source over a step, over T; the other entries unchanged."""
+    plain = make_env(POUR_V1, objects="red_cup", obs_mode=obs_mode)
+    flow = make_env(POUR_V1, objects="red_cup", obs_mode=obs_mode, observe_flow=True)
+    n = plain.observation_space.shape[0]
+    assert flow.observation_space.shape == (n + 1,)
+    assert flow.unwrapped.obs_names[n] == "out_flow"
+    (o0, info0), (o1, _) = plain.reset(seed=4), flow.reset(seed=4)
+    np.testing.assert_array_equal(o0, o1[:n])
+    assert o1[n] == 0.0
+    policy = ScriptedPourPolicy(**action_settings(POUR_V1))
+    prev, flows = info0["in_source"], []
+    done = False
+    while not done:
+        action = policy(o0 if obs_mode == "features" else plain.unwrapped.observe("features"))
+        (o0, _, done, cut, info0), (o1, *_, info1) = plain.step(action), flow.step(action)
+        np.testing.assert_array_equal(o0, o1[:n])
+        flows.append(o1[n])
+        assert o1[n] == pytest.approx((prev - info1["in_source"]) / info1["target_amount"])
+        prev, done = info1["in_source"], done or cut
+    assert info1["is_success"] and sum(flows) == pytest.approx(
+        info1["poured"] / info1["target_amount"]
+    )
+    hidden = make_env(POUR_V1, objects="red_cup", obs_mode=obs_mode, observe_flow=True,
+                      hide=["out_flow"])  # fmt: skip
+    assert hidden.reset(seed=4)[0][n] == 0.0
+
+
 def test_observations_hold_the_library_features(make_env):
     """The features in each observation are the numbers pour_gym.features computes."""
     pour = make_env(POUR_V0)
