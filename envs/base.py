@@ -9,6 +9,8 @@ on arrival.
 
 from __future__ import annotations
 
+import dataclasses
+import numbers
 from pathlib import Path
 from typing import ClassVar
 
@@ -38,8 +40,38 @@ from pour_gym.sim.sensors import SEGMENTS, Body, Sensor, SensorConfig
 from pour_gym.sim.world import CUP_COLORS, FLUIDS, TABLE_COLOR, container_field
 
 RENDER_MODES = ["rgb_array", "human"]
+# The particle spacings an env takes, m: finer is slower (particles grow as 1 / spacing^3),
+# coarser than the walls' 3 mm thickness allows stops holding water in thin-walled cups.
+SPACING_RANGE = (0.0025, 0.008)
 # Which colour each role's container is drawn in.
 ROLE_COLORS = {"source": CUP_COLORS[0], "target": CUP_COLORS[1], "container": CUP_COLORS[1]}
+
+
+def fluid_config_at(fluid_config: PBFConfig | dict | None, spacing: float | None) -> PBFConfig:
+    """The fluid's parameters: ``fluid_config`` (or the defaults) at ``spacing`` (m).
+
+    Raises:
+        InputError: a spacing outside :data:`SPACING_RANGE`, or one that contradicts
+            ``fluid_config``'s own.
+    """
+    if isinstance(fluid_config, dict):
+        own = fluid_config.get("spacing")
+        fluid_config = PBFConfig(**fluid_config)
+    else:  # a PBFConfig's default cannot be told from 5 mm set: only another spacing counts
+        own = getattr(fluid_config, "spacing", PBFConfig.spacing)
+        own = None if own == PBFConfig.spacing else own
+    config = fluid_config or PBFConfig()
+    if spacing is None:
+        return config
+    lo, hi = SPACING_RANGE
+    if not (isinstance(spacing, numbers.Real) and lo <= spacing <= hi):
+        raise InputError(
+            f"spacing is the particles' rest distance in m, from {lo} (fine, slow) to {hi} "
+            f"(coarse, fast; the default 0.005), not {spacing!r}"
+        )
+    if own is not None and own != spacing:
+        raise InputError(f"spacing={spacing} and fluid_config's spacing {own} differ: give one")
+    return dataclasses.replace(config, spacing=float(spacing))
 
 
 class PourGymEnv(gym.Env, EzPickle):
@@ -68,6 +100,8 @@ class PourGymEnv(gym.Env, EzPickle):
             a range (``{"viscosity": [2, 10], "density": 1400}``: Pa s drawn log-uniformly
             per episode), or a list of them (or ``"water,honey"``) to draw each episode's
             from, seeded; None for water. ``info["liquid"]`` names the episode's.
+        spacing: the fluid's particle spacing, m (:data:`SPACING_RANGE`; None: 5 mm, or
+            ``fluid_config``'s): coarser for speed, finer for accuracy.
     """
 
     metadata: ClassVar[dict] = {"render_modes": RENDER_MODES, "render_fps": 10}
@@ -97,6 +131,7 @@ class PourGymEnv(gym.Env, EzPickle):
         scan_seed: int = 0,
         sensor_config: SensorConfig | dict | None = None,
         liquid: str | Liquid | dict | list | None = None,
+        spacing: float | None = None,
     ):
         if fluid not in FLUIDS:
             raise InputError(f"fluid must be one of {FLUIDS}, not {fluid!r}")
@@ -106,8 +141,7 @@ class PourGymEnv(gym.Env, EzPickle):
             raise InputError(f"num_threads must be at least 1 (or None), not {num_threads}")
         if perception not in PERCEPTIONS:
             raise InputError(f"perception must be one of {PERCEPTIONS}, not {perception!r}")
-        if isinstance(fluid_config, dict):
-            fluid_config = PBFConfig(**fluid_config)
+        fluid_config = fluid_config_at(fluid_config, spacing)
         self.reward_weights: dict[str, float] = {}
         self._add_reward_weights(reward_weights)
         self.fluid = fluid

@@ -38,6 +38,8 @@ from pour_gym.sim.rotations import about_z
 from pour_gym.sim.sensors import Sensor, SensorConfig
 
 TILT_CONTROLS = ("rate", "angle")
+# T's range at 5 mm, particles of 0.125 ml (scaled to the same volumes at another spacing).
+AMOUNT_RANGE = (100, 300)
 LIP_CONTROLS = ("velocity", "target")
 
 
@@ -142,7 +144,7 @@ class PourEnv(PourGymEnv):
     | ``fluid_config`` | PBFConfig or dict | None | fluid parameters |
     | ``num_threads`` | int or None | None | fluid threads (None: cores, one in a worker) |
     | ``source_particles`` | int or None | None | the fill (None: T + 100) |
-    | ``amount_range`` | (int, int) | (100, 300) | T, particles (0.125 ml each) |
+    | ``amount_range`` | (int, int) or None | None | T, particles (None: 12.5-37.5 ml) |
     | ``max_speed`` | float | 0.15 | lip speed at action 1, m/s |
     | ``max_tilt_rate`` | float | 60.0 | tilt rate at action 1, deg/s |
     | ``max_tilt`` | float | 135.0 | largest tilt, deg |
@@ -165,6 +167,7 @@ class PourEnv(PourGymEnv):
     | ``render_mode`` | str or None | None | ``"rgb_array"`` or ``"human"`` |
     | ``sensor_config`` | SensorConfig or dict | None | image size, points, noise |
     | ``liquid`` | str, Liquid, dict or list | None | what is poured; a list or range: per episode |
+    | ``spacing`` | float or None | None | particle spacing, m (2.5-8 mm; None: 5 mm) |
     | ``observe_flow`` | bool | False | add ``out_flow`` to a vector observation (see above) |
     | ``holder`` | str | ``"free"`` | what holds the source (:mod:`pour_gym.envs.holders`) |
     | ``**holder_kwargs`` | | | the holder's own arguments |
@@ -187,6 +190,8 @@ class PourEnv(PourGymEnv):
       from per episode, seeded;
       ``info["liquid"]``; docs/liquids.md): water, the default, is the fluid as it was, bit
       for bit; syrup and honey add a viscosity in its unit and walls that hold them.
+      ``spacing`` added (the fluid's particle spacing, 2.5-8 mm; None keeps 5 mm, bit
+      for bit; T's default range and the fill's margin keep their millilitres).
       ``observe_flow`` added (off by default: the observation as it was).
     * v1: the same class, task and physics as v0 with the defaults under which a standard
       learner learns the task from its reward (docs: learning from the reward):
@@ -241,7 +246,7 @@ class PourEnv(PourGymEnv):
         fluid_config: PBFConfig | dict | None = None,
         num_threads: int | None = None,
         source_particles: int | None = None,
-        amount_range: tuple[int, int] = (100, 300),
+        amount_range: tuple[int, int] | None = None,
         max_speed: float = 0.15,
         max_tilt_rate: float = 60.0,
         max_tilt: float = 135.0,
@@ -264,6 +269,7 @@ class PourEnv(PourGymEnv):
         render_mode: str | None = None,
         sensor_config: SensorConfig | dict | None = None,
         liquid: str | Liquid | dict | list | None = None,
+        spacing: float | None = None,
         observe_flow: bool = False,
         holder: str = "free",
         **holder_kwargs,
@@ -296,11 +302,15 @@ class PourEnv(PourGymEnv):
             scan_seed=scan_seed,
             sensor_config=sensor_config,
             liquid=liquid,
+            spacing=spacing,
         )
         modes = parse_obs_mode(obs_mode)
         if source_particles is not None and source_particles < 100:
             raise InputError(f"source_particles must be at least 100, not {source_particles}")
-        lo, hi = amount_range
+        # Counts sized for 5 mm particles (the default amounts, the fill's margin) keep their
+        # volume at another spacing: 100 particles at 5 mm are 292 at 3.5 mm.
+        self.per_5mm = (PBFConfig.spacing / self.fluid_config.spacing) ** 3
+        lo, hi = amount_range or [round(n * self.per_5mm) for n in AMOUNT_RANGE]
         if not 1 <= lo <= hi:
             raise InputError(f"amount_range must be (low, high) with 1 <= low <= high: {lo, hi}")
         if pour_threshold < 1 or pour_steps < 1:
@@ -393,7 +403,7 @@ class PourEnv(PourGymEnv):
         self.fill, self.target_amount = episode_amounts(
             int(0.6 * gs.cavity_volume / v), int(0.6 * gt.cavity_volume / v),
             self.amount_range, self.source_particles, rng,
-            amount_option(options, v), options.get("fill_margin"),
+            amount_option(options, v), options.get("fill_margin"), self.per_5mm,
         )  # fmt: skip
         self.tolerance = tolerance(self.target_amount)
         self.world.fill(self.source, particles=self.fill)

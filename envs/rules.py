@@ -84,6 +84,7 @@ def episode_amounts(
     rng: np.random.Generator,
     amount: int | None = None,
     margin: int | None = None,
+    per_5mm: float = 1.0,
 ) -> tuple[int, int]:
     """An episode's fill of the source and its target amount, particles.
 
@@ -96,6 +97,8 @@ def episode_amounts(
         rng: draws the amount when ``amount`` is None.
         amount: the reset option ``target_amount``.
         margin: the reset option ``fill_margin``: the fill is then the amount plus it.
+        per_5mm: particles at the episode's spacing per 5 mm particle: ``FILL_MARGIN``
+            and the 50 left in a fixed fill are counts of 5 mm particles.
 
     Returns:
         ``(fill, amount)``, the fill at most the source's capacity.
@@ -104,10 +107,11 @@ def episode_amounts(
         InputError: a margin with a fixed fill or below 0, or an amount not in
             [1, fill].
     """
+    fill_margin, spare = round(FILL_MARGIN * per_5mm), round(50 * per_5mm)
     if source_particles is None:
-        most = capacity_source - FILL_MARGIN
+        most = capacity_source - fill_margin
     else:
-        most = min(source_particles, capacity_source) - 50
+        most = min(source_particles, capacity_source) - spare
     hi = max(1, min(amount_range[1], most, capacity_target))
     lo = min(amount_range[0], hi)
     amount = int(rng.integers(lo, hi + 1)) if amount is None else int(amount)
@@ -120,7 +124,7 @@ def episode_amounts(
                 f"source_particles={source_particles})"
             )
         fill = amount + int(margin)
-    fill = min(fill if fill is not None else amount + FILL_MARGIN, capacity_source)
+    fill = min(fill if fill is not None else amount + fill_margin, capacity_source)
     if not 1 <= amount <= fill:
         raise InputError(f"target_amount must be in [1, {fill}] particles, not {amount}")
     return fill, amount

@@ -87,6 +87,7 @@ class TiltPourEnv(PourGymEnv):
     | ``render_mode`` | str or None | None | ``"rgb_array"`` or ``"human"`` |
     | ``sensor_config`` | SensorConfig or dict | None | image size, points, noise |
     | ``liquid`` | str, Liquid, dict or list | None | what is poured; a list or range: per episode |
+    | ``spacing`` | float or None | None | particle spacing, m (2.5-8 mm; None: 5 mm) |
 
     ``reset(options=...)`` accepts ``container``, ``fill`` and ``tilt_deg``.
 
@@ -130,6 +131,7 @@ class TiltPourEnv(PourGymEnv):
         render_mode: str | None = None,
         sensor_config: SensorConfig | dict | None = None,
         liquid: str | Liquid | dict | list | None = None,
+        spacing: float | None = None,
     ):
         EzPickle.__init__(
             self,
@@ -146,6 +148,7 @@ class TiltPourEnv(PourGymEnv):
             render_mode=render_mode,
             sensor_config=sensor_config,
             liquid=liquid,
+            spacing=spacing,
         )
         super().__init__(
             fluid,
@@ -157,6 +160,7 @@ class TiltPourEnv(PourGymEnv):
             steps_fluid=label_mode == "simulate",
             sensor_config=sensor_config,
             liquid=liquid,
+            spacing=spacing,
         )
         parse_obs_mode(obs_mode)  # a bad mode is named before any other argument
         if label_mode not in LABEL_MODES:

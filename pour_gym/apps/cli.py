@@ -191,7 +191,10 @@ def build_parser() -> argparse.ArgumentParser:
     )  # fmt: skip
     p.add_argument("--out", help="flows: a folder for the figure (flows.png)")
     p.add_argument(
-        "--spacing", type=float, default=0.005, help="viscosity: the particles' spacing, m"
+        "--spacing",
+        type=float,
+        default=0.005,
+        help="accuracy, viscosity: the particles' spacing, m (the envs' spacing=)",
     )
     p.add_argument(
         "--part",

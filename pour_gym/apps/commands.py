@@ -378,7 +378,7 @@ def _bench(args: argparse.Namespace) -> Output:
         doc = {k: v for k, v in result.items() if k != "rows"}
         return (doc, lambda: fluid_table(result))
     if args.what == "accuracy":
-        result = bench_accuracy()
+        result = bench_accuracy(spacing=args.spacing)
         return (result, lambda: accuracy_table(result))
     if args.what == "liquids":
         from pour_gym.apps.bench.liquids import bench_liquid_cost, liquid_cost_table

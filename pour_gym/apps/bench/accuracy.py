@@ -16,18 +16,22 @@ COLUMNS = (0.025, 0.05, 0.072, 0.086)  # m: a shallow cup to a full thesis cup
 FILLS = (0.6, 0.7, 0.8)
 
 
-def bench_accuracy(heights: tuple[float, ...] = COLUMNS, fills: tuple[float, ...] = FILLS) -> dict:
+def bench_accuracy(
+    heights: tuple[float, ...] = COLUMNS, fills: tuple[float, ...] = FILLS, spacing: float = 0.005
+) -> dict:
     """Settle columns, tilt filled cups, and watch a shear wave in a tray.
 
     Args:
         heights: the columns' heights, m.
         fills: the cups' fills, fractions of their depth.
+        spacing: the particles' spacing, m (the envs' ``spacing=``).
 
     Returns:
         ``{"columns": [Column as dict, ...], "onsets": [Onset as dict, ...], "shear":
         ShearWave as dict}`` (see :class:`pour_gym.fluid.validation.Column`, ``Onset`` and
         ``ShearWave``; the wave's time series as lists).
     """
+    from pour_gym.fluid.pbf import PBFConfig
     from pour_gym.fluid.validation import (
         COLUMN_HEIGHT,
         ONSET_HEIGHT,
@@ -39,17 +43,19 @@ def bench_accuracy(heights: tuple[float, ...] = COLUMNS, fills: tuple[float, ...
 
     bar = tqdm(total=len(heights) + len(fills) + 1, desc="bench accuracy", file=sys.stderr)
     tall, cup = cylinder_field(COLUMN_HEIGHT), cylinder_field(ONSET_HEIGHT)
+    config = PBFConfig(spacing=spacing)
     columns, onsets = [], []
     for height in heights:
-        columns.append(asdict(settled_column(height, field=tall)))
+        columns.append(asdict(settled_column(height, config, field=tall)))
         bar.update()
     for fill in fills:
-        onsets.append(asdict(pour_onset(fill, field=cup)))
+        onsets.append(asdict(pour_onset(fill, config, field=cup)))
         bar.update()
-    wave = {k: v.tolist() if hasattr(v, "tolist") else v for k, v in asdict(shear_wave()).items()}
+    wave = asdict(shear_wave(config=config))
+    wave = {k: v.tolist() if hasattr(v, "tolist") else v for k, v in wave.items()}
     bar.update()
     bar.close()
-    return {"columns": columns, "onsets": onsets, "shear": wave}
+    return {"spacing": spacing, "columns": columns, "onsets": onsets, "shear": wave}
 
 
 def _percent(x: float) -> str:
