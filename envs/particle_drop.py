@@ -75,7 +75,7 @@ class ParticleDropEnv(PourGymEnv):
     | ``render_mode`` | str or None | None | ``"rgb_array"`` or ``"human"`` |
     | ``sensor_config`` | SensorConfig or dict | None | image size, points, noise |
     | ``liquid`` | str, Liquid, dict or list | None | what is poured; a list or range: per episode |
-    | ``spacing`` | float or None | None | particle spacing, m (2.5-8 mm; None: 5 mm) |
+    | ``spacing`` | float or None | None | particle spacing, m (2.5-7 mm; None: 5 mm) |
 
     ``reset(options=...)`` accepts ``container`` (a name or mesh path), ``spawn`` (xyz in
     the container's frame, m) and ``fill`` (fraction of the volume).
@@ -91,7 +91,7 @@ class ParticleDropEnv(PourGymEnv):
       from per episode, seeded;
       ``info["liquid"]``; docs/liquids.md): water, the default, is the fluid as it was, bit
       for bit; syrup and honey add a viscosity in its unit and walls that hold them.
-      ``spacing`` added (the fluid's particle spacing, 2.5-8 mm; None keeps 5 mm, bit
+      ``spacing`` added (the fluid's particle spacing, 2.5-7 mm; None keeps 5 mm, bit
       for bit).
     * v0 (this release): the sensor observation modes (``"depth"``, ``"rgb"``,
       ``"points"``, tuples of modes) and ``sensor_config`` (the defaults change nothing);

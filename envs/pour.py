@@ -167,7 +167,7 @@ class PourEnv(PourGymEnv):
     | ``render_mode`` | str or None | None | ``"rgb_array"`` or ``"human"`` |
     | ``sensor_config`` | SensorConfig or dict | None | image size, points, noise |
     | ``liquid`` | str, Liquid, dict or list | None | what is poured; a list or range: per episode |
-    | ``spacing`` | float or None | None | particle spacing, m (2.5-8 mm; None: 5 mm) |
+    | ``spacing`` | float or None | None | particle spacing, m (2.5-7 mm; None: 5 mm) |
     | ``observe_flow`` | bool | False | add ``out_flow`` to a vector observation (see above) |
     | ``holder`` | str | ``"free"`` | what holds the source (:mod:`pour_gym.envs.holders`) |
     | ``**holder_kwargs`` | | | the holder's own arguments |
@@ -190,7 +190,7 @@ class PourEnv(PourGymEnv):
       from per episode, seeded;
       ``info["liquid"]``; docs/liquids.md): water, the default, is the fluid as it was, bit
       for bit; syrup and honey add a viscosity in its unit and walls that hold them.
-      ``spacing`` added (the fluid's particle spacing, 2.5-8 mm; None keeps 5 mm, bit
+      ``spacing`` added (the fluid's particle spacing, 2.5-7 mm; None keeps 5 mm, bit
       for bit; T's default range and the fill's margin keep their millilitres).
       ``observe_flow`` added (off by default: the observation as it was).
     * v1: the same class, task and physics as v0 with the defaults under which a standard

@@ -87,7 +87,7 @@ class TiltPourEnv(PourGymEnv):
     | ``render_mode`` | str or None | None | ``"rgb_array"`` or ``"human"`` |
     | ``sensor_config`` | SensorConfig or dict | None | image size, points, noise |
     | ``liquid`` | str, Liquid, dict or list | None | what is poured; a list or range: per episode |
-    | ``spacing`` | float or None | None | particle spacing, m (2.5-8 mm; None: 5 mm) |
+    | ``spacing`` | float or None | None | particle spacing, m (2.5-7 mm; None: 5 mm) |
 
     ``reset(options=...)`` accepts ``container``, ``fill`` and ``tilt_deg``.
 

@@ -45,8 +45,8 @@ def test_a_finer_spacing_is_the_same_task_in_millilitres():
 @pytest.mark.parametrize(
     "kwargs, message",
     [
-        ({"spacing": 0.001}, "from 0.0025 .* to 0.008"),
-        ({"spacing": 0.05}, "from 0.0025 .* to 0.008"),
+        ({"spacing": 0.001}, "from 0.0025 .* to 0.007"),
+        ({"spacing": 0.008}, "from 0.0025 .* to 0.007"),
         ({"spacing": "5 mm"}, "rest distance in m"),
         ({"spacing": 0.004, "fluid_config": {"spacing": 0.006}}, "differ: give one"),
         ({"spacing": 0.004, "fluid_config": PBFConfig(spacing=0.006)}, "differ: give one"),
