@@ -123,7 +123,8 @@ class PourEnv(PourGymEnv):
     ``amount_range`` (at most 60 % of the target's volume, and at most the source's fill
     less 50); the source filled with ``source_particles`` (by default T + 100, the fill
     sized to the task; at most 60 % of its volume), every particle in its cavity, its lip
-    0-5 cm above the lowest allowed height at the origin.
+    0-5 cm above the lowest allowed height at the origin. (The 100 and 50 are 5 mm
+    particles: 12.5 and 6.25 ml at any ``spacing``.)
 
     ## Episode End
     Terminated once a pour has happened (at least ``pour_threshold`` particles out of the
