@@ -118,6 +118,42 @@ def test_training_starts_follow_the_env_seed_from_the_first_reset():
     assert len({margin for margin, _ in first}) > 1
 
 
+def test_amount_closeness_pays_on_the_last_step_by_how_near_the_pour_came(make_env):
+    """The training-only term: the credit falls linearly from 1 on the amount to 0 at
+    ``width`` tolerances off; over an expert episode it is paid on the last step only,
+    weight times that credit on top of the env's reward, and nothing on a spilled end."""
+    from pour_gym.agents.policies.scripted import ScriptedPourPolicy, action_settings
+    from pour_gym.agents.training.shaping import AmountCloseness, closeness
+
+    assert closeness(200, 200, 20, 3.0) == 1.0
+    assert closeness(230, 200, 20, 3.0) == pytest.approx(0.5)
+    assert closeness(170, 200, 20, 3.0) == pytest.approx(0.5)
+    assert closeness(100, 200, 20, 3.0) == 0.0
+    plain = make_env("PourGym/Pour-v1", objects="red_cup", num_threads=1)
+    shaped = AmountCloseness(
+        make_env("PourGym/Pour-v1", objects="red_cup", num_threads=1), weight=2.0, width=3.0
+    )
+    policy = ScriptedPourPolicy(**action_settings("PourGym/Pour-v1"))
+    (obs, _), _ = plain.reset(seed=3), shaped.reset(seed=3)
+    done = False
+    while not done:
+        action = policy(obs)
+        obs, r0, term, cut, info0 = plain.step(action)
+        _, r1, *_, info1 = shaped.step(action)
+        done = term or cut
+        if not term:
+            assert r1 == r0 and "closeness" not in info1
+    assert info0["is_success"] and info1["poured"] == info0["poured"]
+    want = closeness(info0["poured"], info0["target_amount"], info0["tolerance"], 3.0)
+    assert want > 2 / 3 and info1["closeness"] == want
+    assert r1 == pytest.approx(r0 + 2.0 * want)
+    spilled = {**info0, "spilled": 1}
+    shaped.env.step = lambda action: (obs, 0.0, True, False, spilled)
+    assert shaped.step(action)[1] == 0.0
+    with pytest.raises(ValueError, match="width > 0"):
+        AmountCloseness(plain, width=0.0)
+
+
 @pytest.mark.slow
 def test_train_py_trains_checkpoints_resumes_and_evaluates(tmp_path):
     out = tmp_path / "run"

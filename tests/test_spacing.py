@@ -16,6 +16,7 @@ import pytest
 import pour_gym  # noqa: F401 (registers the envs)
 from pour_gym.agents.policies.rollout import rollout
 from pour_gym.agents.policies.scripted import ScriptedPourPolicy, action_settings
+from pour_gym.agents.training.curriculum import TrainingStarts
 from pour_gym.envs import POUR_V1
 from pour_gym.errors import InputError
 from pour_gym.fluid.pbf import PBFConfig
@@ -23,7 +24,7 @@ from pour_gym.fluid.pbf import PBFConfig
 
 def test_a_finer_spacing_is_the_same_task_in_millilitres():
     """At 3.5 mm a particle is 0.043 ml: T's range and the fill's margin hold 2.9 times the
-    particles, the same 12.5-37.5 ml and 12.5 ml as at 5 mm."""
+    particles, the same 12.5-37.5 ml and 12.5 ml as at 5 mm (the curriculum's margins too)."""
     env = gym.make(POUR_V1, objects="red_cup", spacing=0.0035, num_threads=1)
     u = env.unwrapped
     assert u.fluid_config.spacing == 0.0035 and u.fluid_config == PBFConfig(spacing=0.0035)
@@ -36,6 +37,10 @@ def test_a_finer_spacing_is_the_same_task_in_millilitres():
         assert len(u.world.particles) == info["fill"]
     again = pickle.loads(pickle.dumps(u))
     assert again.fluid_config.spacing == 0.0035 and again.amount_range == u.amount_range
+    # The training curriculum's margins are 5 mm particles too.
+    starts = TrainingStarts(env, fill_margin=(20, 20))
+    _, info = starts.reset(seed=0)
+    assert info["fill"] - info["target_amount"] == round(20 * per) == 58
     env.close()
     default = gym.make(POUR_V1, objects="red_cup").unwrapped
     assert default.amount_range == (100, 300) and default.fluid_config == PBFConfig()

@@ -27,7 +27,8 @@ class TrainingStarts(gym.Wrapper):
     - that it must stop: with the default fill (the target amount T plus 100 particles) a
       learner that pours everything earns most of the reward and never sees a success.
       With ``fill_margin=(lo, hi)`` each episode fills T plus a margin drawn uniformly
-      from ``lo``-``hi`` particles (``reset(options={"fill_margin": m})``): near 0,
+      from ``lo``-``hi`` particles of 5 mm (``reset(options={"fill_margin": m})``, ``m``
+      scaled to the env's spacing so that it holds the same volume): near 0,
       pouring everything and setting the source upright is a success, and because the
       margin varies, only "poured close to T", not "the source is nearly empty", tells
       when to stop.
@@ -35,7 +36,8 @@ class TrainingStarts(gym.Wrapper):
     Args:
         env: a Pour-v0 environment (possibly wrapped).
         near_target: the fraction of episodes that start over the target.
-        fill_margin: (lo, hi) particles of fill beyond T, or None for the env's own fill.
+        fill_margin: (lo, hi) particles of fill beyond T (counted at the default 5 mm
+            spacing), or None for the env's own fill.
     """
 
     def __init__(
@@ -73,5 +75,7 @@ class TrainingStarts(gym.Wrapper):
         options.setdefault("near_target", near)
         if self.fill_margin is not None:
             margin = int(self._rng.integers(self.fill_margin[0], self.fill_margin[1] + 1))
-            options.setdefault("fill_margin", margin)
+            # Drawn in 5 mm particles, so a margin holds its volume at any spacing.
+            per_5mm = getattr(self.env.unwrapped, "per_5mm", 1.0)
+            options.setdefault("fill_margin", round(margin * per_5mm))
         return self.env.reset(seed=seed, options=options)
