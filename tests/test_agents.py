@@ -566,6 +566,11 @@ def test_loading_a_model_file_warns_to_trust_its_source(tmp_path):
     shutil.copytree(MODELS / "pour-v0-red-cup-features", copy)
     with pytest.warns(UserWarning, match="sources you trust"):
         load_run(copy / "model.zip")
+    # A run folder, as train.py --out writes it and the docs print it, is its model.zip.
+    with pytest.warns(UserWarning, match="sources you trust"):
+        assert load_run(copy).config == load_run(copy / "model.zip").config
+    with pytest.raises(InputError, match="a run folder holding one"):
+        load_run(tmp_path)  # a folder without a model.zip
 
 
 def test_a_noise_schedule_caps_ppo_action_noise_down_to_its_final_std():

@@ -73,19 +73,23 @@ def load_run(model_path: str | Path, algo: str | None = None) -> Run:
     """Load ``model.zip`` with the ``config.json`` and ``vecnormalize.pkl`` beside it.
 
     Args:
-        model_path: the model file, or the name of a shipped model (:func:`shipped_models`).
+        model_path: the model file, a run folder holding ``model.zip``, or the name of a
+            shipped model (:func:`shipped_models`).
         algo: the algorithm, if there is no ``config.json`` to say it.
 
     Raises:
         InputError: no such file, or no way to tell the algorithm.
     """
     path = Path(model_path)
+    if path.is_dir() and (path / "model.zip").is_file():
+        path = path / "model.zip"  # a run folder, as train.py --out wrote it
     if not path.is_file():
         shipped = MODELS / str(model_path) / "model.zip"
         if not shipped.is_file():
             names = ", ".join(shipped_models()) or "none"
             raise InputError(
-                f"no model file {str(model_path)!r}: give a model.zip or a shipped model ({names})"
+                f"no model file {str(model_path)!r}: give a model.zip, a run folder holding "
+                f"one, or a shipped model ({names})"
             )
         path = shipped
     config_path = path.parent / "config.json"

@@ -261,9 +261,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument(
         "policy",
-        help="an SB3 model.zip from train.py, the name of a shipped model (e.g. "
-        "pour-v0-red-cup-features), 'scripted', 'random' (uniform actions, seeded per "
-        "episode), or a search.json",
+        help="an SB3 model.zip from train.py (or the run folder holding it), the name of a "
+        "shipped model (e.g. pour-v0-red-cup-features), 'scripted', 'random' (uniform "
+        "actions, seeded per episode), or a search.json",
     )
     p.add_argument("--env", help="environment id (default: the model's, or Pour-v0)")
     p.add_argument("--objects", default="all", help="split or comma-separated containers")
