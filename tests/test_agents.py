@@ -187,6 +187,19 @@ def test_train_py_trains_checkpoints_resumes_and_evaluates(tmp_path):
     assert json.loads(again.stdout)["rows"] == doc["rows"]
     bad = subprocess.run([*cmd[:2], "--set", "oops"], capture_output=True, text=True)
     assert bad.returncode == 2 and "key=value" in bad.stderr
+    # Trained on with a recipe key changed: the resumed part uses it (SB3's load alone
+    # would keep the checkpoint's), and a network of another shape is refused by name.
+    on = [*cmd, "--set", "learning_rate=0.0001"]
+    on[on.index("--timesteps") + 1] = "1000"
+    subprocess.run(on, capture_output=True, text=True, check=True)
+    from stable_baselines3 import PPO
+
+    resumed = PPO.load(out / "model.zip", device="cpu")
+    assert resumed.num_timesteps > 512 and resumed.learning_rate == 0.0001
+    wider = subprocess.run([*on, "--set", "policy_kwargs={net_arch: [8]}"], capture_output=True,
+                           text=True)  # fmt: skip
+    assert wider.returncode != 0 and "policy_kwargs" in wider.stderr
+    assert "Traceback" not in wider.stderr
 
 
 @pytest.mark.slow

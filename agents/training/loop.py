@@ -154,7 +154,19 @@ def train(config: TrainConfig) -> dict:
         if recipe.normalize and stats.is_file():
             venv = VecNormalize.load(str(stats), venv.venv)
         importable_old_paths()  # a checkpoint saved before the agents were grouped
-        model = cls.load(checkpoint, env=venv, seed=config.seed, device="cpu")
+        # The recipe as this command gives it (its --set overrides included), not as the
+        # checkpoint saved it: a run resumed with a new learning rate trains with it.
+        try:
+            model = cls.load(checkpoint, env=venv, seed=config.seed, device="cpu",
+                             **algorithm_arguments(params))  # fmt: skip
+        except ValueError as err:
+            if "policy kwargs" not in str(err):
+                raise
+            raise InputError(
+                f"{checkpoint} was saved with other policy_kwargs than the recipe gives: a "
+                "network's shape cannot change when a run resumes (keep the recipe's "
+                "policy_kwargs, or train into a new --out)"
+            ) from err
         buffer = ckpt_dir / f"model_replay_buffer_{done}_steps.pkl"
         if buffer.is_file() and hasattr(model, "load_replay_buffer"):
             model.load_replay_buffer(buffer)
