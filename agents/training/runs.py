@@ -80,18 +80,16 @@ def load_run(model_path: str | Path, algo: str | None = None) -> Run:
     Raises:
         InputError: no such file, or no way to tell the algorithm.
     """
-    path = Path(model_path)
-    if path.is_dir() and (path / "model.zip").is_file():
-        path = path / "model.zip"  # a run folder, as train.py --out wrote it
-    if not path.is_file():
-        shipped = MODELS / str(model_path) / "model.zip"
-        if not shipped.is_file():
-            names = ", ".join(shipped_models()) or "none"
-            raise InputError(
-                f"no model file {str(model_path)!r}: give a model.zip, a run folder holding "
-                f"one, or a shipped model ({names})"
-            )
-        path = shipped
+    given = Path(model_path)
+    # The file itself, a run folder as train.py --out wrote it, or a shipped model's folder.
+    candidates = (given, given / "model.zip", MODELS / str(model_path) / "model.zip")
+    path = next((p for p in candidates if p.is_file()), None)
+    if path is None:
+        names = ", ".join(shipped_models()) or "none"
+        raise InputError(
+            f"no model file {str(model_path)!r}: give a model.zip, a run folder holding "
+            f"one, or a shipped model ({names})"
+        )
     config_path = path.parent / "config.json"
     config = json.loads(config_path.read_text()) if config_path.is_file() else {}
     name = config.get("algo", algo)
