@@ -154,6 +154,50 @@ def test_amount_closeness_pays_on_the_last_step_by_how_near_the_pour_came(make_e
         AmountCloseness(plain, width=0.0)
 
 
+def test_flow_limit_charges_a_flow_that_cannot_stop_on_its_amount(make_env):
+    """The training-only charge: nothing while the flow is within what remains over the
+    lead; the excess per step in target amounts beyond it. The expert, which slows its
+    stream as the amount nears, pays under a tenth of what tipping the source over the
+    target pays, and the charge is the only change to the env's reward."""
+    from pour_gym.agents.policies.scripted import ScriptedPourPolicy, action_settings
+    from pour_gym.agents.training.shaping import FlowLimit, excess_flow
+
+    assert excess_flow(out=20, last_out=0, target_amount=200, lead=5.0) == 0.0
+    # 40 out of 200 remaining in one step, at most 200 / 5 = 40 allowed: on the limit.
+    assert excess_flow(40, 0, 200, 5.0) == 0.0
+    assert excess_flow(60, 0, 200, 5.0) == pytest.approx(0.1)
+    # Beyond the amount, every particle out is excess.
+    assert excess_flow(230, 210, 200, 5.0) == pytest.approx(0.1)
+
+    def episode(policy) -> tuple[float, float]:
+        plain = make_env("PourGym/Pour-v1", objects="red_cup", num_threads=1)
+        shaped = FlowLimit(
+            make_env("PourGym/Pour-v1", objects="red_cup", num_threads=1), weight=1.0, lead=5.0
+        )
+        (obs, _), _ = (
+            plain.reset(seed=3, options={"near_target": True}),
+            shaped.reset(seed=3, options={"near_target": True}),
+        )
+        charge, done = 0.0, False
+        while not done:
+            action = policy(obs)
+            obs, r0, term, cut, info0 = plain.step(action)
+            _, r1, *_, info1 = shaped.step(action)
+            assert info1["poured"] == info0["poured"]
+            assert r1 == pytest.approx(r0 + info1["reward_flow_limit"])
+            charge += info1["reward_flow_limit"]
+            done = term or cut
+        return charge, info0["is_success"]
+
+    expert, poured_well = episode(ScriptedPourPolicy(**action_settings("PourGym/Pour-v1")))
+    tipped, _ = episode(lambda obs: np.array([0.0, 0.0, -1.0, 1.0]))
+    # Measured: the expert -0.12, tipping over -4.25.
+    assert poured_well and -0.2 < expert <= 0.0
+    assert tipped < 10 * expert and tipped < -1.0
+    with pytest.raises(ValueError, match="lead > 0"):
+        FlowLimit(make_env("PourGym/Pour-v1", objects="red_cup", num_threads=1), lead=0.0)
+
+
 @pytest.mark.slow
 def test_train_py_trains_checkpoints_resumes_and_evaluates(tmp_path):
     out = tmp_path / "run"
