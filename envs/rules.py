@@ -155,6 +155,11 @@ def pour_counts(census: Census, velocities: np.ndarray, source: int, target: int
     }
 
 
+def out_of_source(info: Mapping) -> int:
+    """Particles that have left the source so far (in the target, in flight, spilled)."""
+    return info["poured"] + info["in_flight"] + info["spilled"]
+
+
 def succeeded(poured: int, spilled: int, tilt: float, target_amount: int, tol: int) -> bool:
     """The amount within the tolerance, nothing spilled, the source upright."""
     return abs(poured - target_amount) <= tol and spilled == 0 and tilt < UPRIGHT_DEG

@@ -9,12 +9,12 @@ them all.
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
-from pour_gym.envs.rules import POUR_OUTCOMES, outcome
+from pour_gym.envs.rules import POUR_OUTCOMES, out_of_source, outcome
 
 
 @dataclass(frozen=True)
@@ -86,6 +86,41 @@ class Task:
             they had tunnelled into in the last step); the others: nothing.
         """
         return {"corrections": float(info["fluid_corrections"])} if self.pours else {}
+
+    def profile(self, infos: Sequence[Mapping], dt: float) -> dict[str, float]:
+        """How a pouring episode poured, from every step's info (:func:`pour_profile`).
+
+        Returns:
+            A pouring task: ``pour_seconds`` and ``peak_flow``; the others: nothing.
+        """
+        return pour_profile(infos, dt) if self.pours else {}
+
+
+def pour_profile(infos: Sequence[Mapping], dt: float) -> dict[str, float]:
+    """How long a pour's stream ran and how fast it ran at most.
+
+    What has left the source is counted as a running maximum (a particle flickering
+    across the lip counts once), so a flow is never negative.
+
+    Args:
+        infos: every step's info of a pouring episode, in order.
+        dt: the env's step, s.
+
+    Returns:
+        ``pour_seconds``: from the start of the first step that let particles out of the
+        source to the end of the last, s (0 if none left); ``peak_flow``: the most that
+        left in one step, in target amounts per second.
+    """
+    if not infos:
+        return {"pour_seconds": 0.0, "peak_flow": 0.0}
+    out = np.maximum.accumulate([out_of_source(info) for info in infos])
+    flow = np.diff(out, prepend=0)
+    steps = np.flatnonzero(flow > 0)
+    seconds = float((steps[-1] - steps[0] + 1) * dt) if len(steps) else 0.0
+    return {
+        "pour_seconds": seconds,
+        "peak_flow": float(flow.max() / infos[-1]["target_amount"] / dt),
+    }
 
 
 def mean_metrics(episodes: Iterable[dict[str, float]]) -> dict[str, float]:

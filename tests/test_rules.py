@@ -98,3 +98,21 @@ def test_a_particle_in_no_container_has_spilled_once_it_rests():
     c = pour_counts(census, v, source=0, target=1)
     assert {k: c[k] for k in ("in_source", "poured", "in_flight", "spilled")} == {
         "in_source": 2, "poured": 1, "in_flight": 2, "spilled": 1}  # fmt: skip
+
+
+def test_pour_profile_times_the_stream_and_its_peak():
+    """A stream that lets 10, 30, 0, 20 particles out on steps 3-6 of 8 (0.1 s each, T =
+    100): it ran 0.4 s and peaked at 30 particles in a step, 3 T/s. A particle that
+    flickers back into the source does not make a negative flow or a second stream."""
+    from pour_gym.envs.task import POUR, pour_profile
+
+    def infos(outs):
+        return [{"poured": n, "in_flight": 0, "spilled": 0, "target_amount": 100} for n in outs]
+
+    profile = pour_profile(infos([0, 0, 10, 40, 40, 60, 60, 60]), dt=0.1)
+    assert profile["pour_seconds"] == pytest.approx(0.4)
+    assert profile["peak_flow"] == pytest.approx(3.0)
+    flicker = pour_profile(infos([0, 1, 0, 1, 1]), dt=0.1)
+    assert flicker == {"pour_seconds": pytest.approx(0.1), "peak_flow": pytest.approx(0.1)}
+    assert pour_profile(infos([0, 0]), dt=0.1) == {"pour_seconds": 0.0, "peak_flow": 0.0}
+    assert POUR.profile(infos([0, 5]), dt=0.1)["pour_seconds"] == pytest.approx(0.1)

@@ -136,8 +136,9 @@ def evaluate_policy(
         ``{"env", "episodes", "seed", "rows": [{"object", "source", "target", "trained_on", and
         the task's metrics and diagnostics (:class:`pour_gym.envs.task.Task`: "success",
         "return", and for a pouring task "amount_error", "spilled", "corrections"), each
-        the mean over the row's episodes, and for a pouring task the share of its
-        episodes per outcome, ``outcome_<name>`` (:meth:`~pour_gym.envs.task.Task.outcome`:
+        the mean over the row's episodes; for a pouring task its profile, "pour_seconds"
+        and "peak_flow" (:func:`pour_gym.envs.task.pour_profile`), likewise, and the share
+        of its episodes per outcome, ``outcome_<name>`` (:meth:`~pour_gym.envs.task.Task.outcome`:
         why an episode failed)}...], "mean": {the means over the rows}}``; ``target`` is
         None for the one-container tasks.
     """
@@ -164,8 +165,14 @@ def evaluate_policy(
         env = make(env_id, **containers, **(env_kwargs or {}))
         metrics, last = [], []
         for ep in range(episodes):  # the bar counts episodes, as its total does
-            episode = rollout(env, policy, seed=seed + k * episodes + ep)
-            metrics.append({**episode.metrics(task), **task.diagnostics(episode.info)})
+            episode = rollout(env, policy, seed=seed + k * episodes + ep, keep_infos=task.pours)
+            metrics.append(
+                {
+                    **episode.metrics(task),
+                    **task.diagnostics(episode.info),
+                    **task.profile(episode.infos, env.unwrapped.dt),
+                }
+            )
             last.append(episode.info)
             bar.update()
         env.close()
@@ -180,7 +187,8 @@ def evaluate_policy(
             }
         )
     bar.close()
-    keys = (*task.metric_names, *(f"outcome_{name}" for name in task.outcomes))
+    profile = ("pour_seconds", "peak_flow") if task.pours else ()
+    keys = (*task.metric_names, *profile, *(f"outcome_{name}" for name in task.outcomes))
     mean = mean_metrics({key: r[key] for key in keys} for r in rows)
     unseen = [r for r in rows if not r["trained_on"]]
     if unseen and len(unseen) < len(rows):
@@ -193,22 +201,27 @@ def evaluation_table(result: dict) -> str:
     pours = task_of(result["env"]).pours
     header = ["object", "success", "mean return"]
     if pours:
-        header += ["mean amount error (particles)", "mean spilled", "failures"]
+        header += ["mean amount error (particles)", "mean spilled", "pour, s", "peak flow, T/s",
+                   "failures"]  # fmt: skip
     rows = []
     for r in result["rows"]:
         row = [r["object"] + (" *" if r["trained_on"] else ""), f"{r['success']:.2f}",
                f"{r['return']:.2f}"]  # fmt: skip
         if pours:
-            row += [f"{r['amount_error']:.1f}", f"{r['spilled']:.1f}", _failures(r)]
+            row += [f"{r['amount_error']:.1f}", f"{r['spilled']:.1f}", *_profile(r), _failures(r)]
         rows.append(row)
     m = result["mean"]
     last = ["**mean**", f"**{m['success']:.2f}**", f"{m['return']:.2f}"]
     if pours:
-        last += [f"{m['amount_error']:.1f}", f"{m['spilled']:.2f}", _failures(m)]
+        last += [f"{m['amount_error']:.1f}", f"{m['spilled']:.2f}", *_profile(m), _failures(m)]
     lines = [markdown_table(header, [*rows, last], align="l" + "r" * (len(header) - 1))]
     if "success_unseen" in m:
         lines.append(f"\nsuccess on containers never trained on: {m['success_unseen']:.2f}")
     if pours:
+        lines.append(
+            "\npour: how long the stream ran; peak flow: the most that left the source in one "
+            "step, in target amounts per second (envs.task.pour_profile)"
+        )
         lines.append(
             "\nfailures: the share of episodes that failed, by why (envs.rules.POUR_OUTCOMES)"
         )
@@ -224,18 +237,26 @@ def liquids_table(result: dict) -> str:
     pours = task_of(result["env"]).pours
     header = ["liquid", "success", "mean return"]
     if pours:
-        header += ["mean amount error (particles)", "mean spilled", "failures"]
+        header += ["mean amount error (particles)", "mean spilled", "pour, s", "peak flow, T/s",
+                   "failures"]  # fmt: skip
     rows = []
     for name, res in result["by_liquid"].items():
         m = res["mean"]
         row = [name, f"{m['success']:.2f}", f"{m['return']:.2f}"]
         if pours:
-            row += [f"{m['amount_error']:.1f}", f"{m['spilled']:.2f}", _failures(m)]
+            row += [f"{m['amount_error']:.1f}", f"{m['spilled']:.2f}", *_profile(m), _failures(m)]
         rows.append(row)
     parts = [markdown_table(header, rows, align="l" + "r" * (len(header) - 1))]
     for name, res in result["by_liquid"].items():
         parts.append(f"\n### {name}\n\n{evaluation_table(res)}")
     return "\n".join(parts)
+
+
+def _profile(row: dict) -> list[str]:
+    """A row's pour time (s) and peak flow (T/s); ``-`` for results from before them."""
+    if "pour_seconds" not in row:
+        return ["-", "-"]
+    return [f"{row['pour_seconds']:.1f}", f"{row['peak_flow']:.2f}"]
 
 
 def _failures(row: dict) -> str:

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import gymnasium as gym
 
-from pour_gym.envs.rules import UPRIGHT_DEG
+from pour_gym.envs.rules import UPRIGHT_DEG, out_of_source
 
 
 def closeness(poured: int, target_amount: int, tol: int, width: float) -> float:
@@ -124,20 +124,16 @@ class FlowLimit(gym.Wrapper):
         self.lead = float(lead)
         self._out = 0
 
-    @staticmethod
-    def _out_of_source(info: dict) -> int:
-        return info["poured"] + info["in_flight"] + info["spilled"]
-
     def reset(self, **kwargs):
         """The env's reset."""
         obs, info = self.env.reset(**kwargs)
-        self._out = self._out_of_source(info)
+        self._out = out_of_source(info)
         return obs, info
 
     def step(self, action):
         """The env's step, its reward less the charge (``info["reward_flow_limit"]``)."""
         obs, reward, terminated, truncated, info = self.env.step(action)
-        out = max(self._out, self._out_of_source(info))
+        out = max(self._out, out_of_source(info))
         term = -self.weight * excess_flow(out, self._out, info["target_amount"], self.lead)
         self._out = out
         info = {**info, "reward_flow_limit": term}
