@@ -181,13 +181,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "what",
         choices=[
-            "reconstruct", "label", "fluid", "accuracy", "viscosity", "flows", "liquids", "envs",
-            "ray", "coldstart",
+            "reconstruct", "label", "fluid", "accuracy", "viscosity", "flows", "efflux",
+            "liquids", "envs", "ray", "coldstart",
         ],
         help="accuracy is the fluid's against hydrostatics (not a timing); viscosity the "
         "fluid's measured against the liquids'; flows efflux, a dam break and the liquids' "
-        "pours; liquids a step's cost by liquid; coldstart the seconds a new process takes "
-        "to its first step",
+        "pours; efflux water's efflux by particle spacing (--sizes: spacings, mm); liquids "
+        "a step's cost by liquid; coldstart the seconds a new process takes to its first step",
     )  # fmt: skip
     p.add_argument("--out", help="flows: a folder for the figure (flows.png)")
     p.add_argument(

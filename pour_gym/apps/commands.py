@@ -390,6 +390,12 @@ def _bench(args: argparse.Namespace) -> Output:
 
         result = bench_flows(out=args.out)
         return (result, lambda: flows_table(result))
+    if args.what == "efflux":
+        from pour_gym.apps.bench.liquids import bench_efflux, efflux_table
+
+        mm = [float(s) for s in (args.sizes or "5,3.5,2.5").split(",")]
+        result = bench_efflux(tuple(m / 1000 for m in mm))
+        return (result, lambda: efflux_table(result))
     if args.what == "viscosity":
         from pour_gym.apps.bench.liquids import bench_viscosity, viscosity_table
 
