@@ -5,9 +5,10 @@ one episode per policy with the same seed and containers: PPO's shipped family p
 its mean action pours its amount in a flick, the expert in a regulated stream
 (docs/learning-from-reward.md, "Over the family: PPO pours in a flick").
 
-    python docs/learning-from-reward/pour_profiles.py [MODEL ...] [--object procedural:test#53] [--seed 60106]
+    python docs/learning-from-reward/pour_profiles.py [MODEL ...] [--object NAME] [--seed N]
 
-Each MODEL is a run folder or a shipped model's name (default: pour-v1-family-sde).
+Each MODEL is a run folder or a shipped model's name (default: pour-v1-family-sde); the
+episode is NAME as source and target (default procedural:test#53) at seed N (60106).
 Writes docs/learning-from-reward/pour_profiles.png.
 """
 
