@@ -19,9 +19,8 @@ import gymnasium as gym
 import numpy as np
 
 import pour_gym  # noqa: F401 (registers the envs)
-from pour_gym.agents.policies.rollout import rollout, sb3_policy
-from pour_gym.agents.policies.scripted import ScriptedPourPolicy, action_settings
-from pour_gym.agents.training.runs import load_run
+from pour_gym.agents.evaluation.evaluate import load_policy
+from pour_gym.agents.policies.rollout import rollout
 from pour_gym.report.tables import markdown_table
 
 ENV = "PourGym/Pour-v1"
@@ -31,19 +30,17 @@ parser.add_argument("models", nargs="*", default=["pour-v1-family-sde"])
 parser.add_argument("--members", type=int, default=50)
 args = parser.parse_args()
 
-policies = {"scripted expert": (ScriptedPourPolicy(**action_settings(ENV)), {})}
+policies = {"scripted expert": load_policy("scripted", ENV)}
 for name in args.models:
-    run = load_run(name)
-    kwargs = {k: v for k, v in run.env_kwargs().items() if k != "obs_mode"}
-    policies[f"{name} (mean action)"] = (sb3_policy(run, deterministic=True), kwargs)
+    policies[f"{name} (mean action)"] = load_policy(name, ENV, actions="mean")
 
 rows = []
-for label, (policy, kwargs) in policies.items():
+for label, loaded in policies.items():
     success, steps, returns = [], [], []
     for k in range(args.members):
-        env = gym.make(ENV, objects=[f"procedural:test#{k}"], num_threads=1, **kwargs)
+        env = gym.make(ENV, objects=[f"procedural:test#{k}"], num_threads=1, **loaded.env_kwargs)
         rewards: list[float] = []
-        episode = rollout(env, policy, seed=60000 + 2 * k,
+        episode = rollout(env, loaded.policy, seed=60000 + 2 * k,
                           on_step=lambda step, into=rewards: into.append(step.reward))  # fmt: skip
         env.close()
         r = np.array(rewards)

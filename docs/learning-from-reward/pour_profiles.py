@@ -23,9 +23,8 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 import pour_gym  # noqa: F401 (registers the envs)
-from pour_gym.agents.policies.rollout import rollout, sb3_policy
-from pour_gym.agents.policies.scripted import ScriptedPourPolicy, action_settings
-from pour_gym.agents.training.runs import load_run
+from pour_gym.agents.evaluation.evaluate import load_policy
+from pour_gym.agents.policies.rollout import rollout
 from pour_gym.envs.rules import out_of_source
 from pour_gym.envs.task import pour_profile
 
@@ -36,16 +35,14 @@ parser.add_argument("--object", default="procedural:test#53")
 parser.add_argument("--seed", type=int, default=60106)
 args = parser.parse_args()
 
-policies = {"scripted expert": (ScriptedPourPolicy(**action_settings(ENV)), {})}
+policies = {"scripted expert": load_policy("scripted", ENV)}
 for name in args.models:
-    run = load_run(name)
-    kwargs = {k: v for k, v in run.env_kwargs().items() if k != "obs_mode"}
-    policies[f"{Path(name).name} (mean action)"] = (sb3_policy(run, deterministic=True), kwargs)
+    policies[f"{Path(name).name} (mean action)"] = load_policy(name, ENV, actions="mean")
 
 fig, (ax_tilt, ax_out) = plt.subplots(2, 1, figsize=(7, 6.2), sharex=True)
-for label, (policy, kwargs) in policies.items():
-    env = gym.make(ENV, objects=[args.object], num_threads=1, **kwargs)
-    episode = rollout(env, policy, seed=args.seed, keep_infos=True)
+for label, loaded in policies.items():
+    env = gym.make(ENV, objects=[args.object], num_threads=1, **loaded.env_kwargs)
+    episode = rollout(env, loaded.policy, seed=args.seed, keep_infos=True)
     env.close()
     infos = episode.infos
     t = env.unwrapped.dt * np.arange(1, len(infos) + 1)
