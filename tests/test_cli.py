@@ -26,6 +26,13 @@ def test_unknown_object_is_a_one_line_error(cli):
     assert "Traceback" not in proc.stderr
 
 
+def test_bench_efflux_names_a_spacing_it_cannot_take(cli):
+    for bad, words in (("5,x", "particle spacings in mm"), ("9", "from 0.0025 (fine, slow)")):
+        proc = cli("bench", "efflux", "--sizes", bad, check=False)
+        assert proc.returncode == 2 and words in proc.stderr
+        assert "Traceback" not in proc.stderr
+
+
 @pytest.mark.parametrize("command", ["train", "search"])
 def test_env_kwargs_that_are_not_a_json_object_are_named(cli, command):
     for bad, words in (("{bad", "not JSON"), ("[1]", "a JSON object {...} is needed")):

@@ -393,8 +393,14 @@ def _bench(args: argparse.Namespace) -> Output:
     if args.what == "efflux":
         from pour_gym.apps.bench.liquids import bench_efflux, efflux_table
 
-        mm = [float(s) for s in (args.sizes or "5,3.5,2.5").split(",")]
-        result = bench_efflux(tuple(m / 1000 for m in mm))
+        try:
+            mm = [float(s) for s in args.sizes.split(",")] if args.sizes else []
+        except ValueError:
+            raise InputError(
+                f"--sizes for efflux are particle spacings in mm (e.g. 5,3.5,2.5), not "
+                f"{args.sizes!r}"
+            ) from None
+        result = bench_efflux(tuple(m / 1000 for m in mm)) if mm else bench_efflux()
         return (result, lambda: efflux_table(result))
     if args.what == "viscosity":
         from pour_gym.apps.bench.liquids import bench_viscosity, viscosity_table

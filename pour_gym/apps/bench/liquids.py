@@ -145,6 +145,9 @@ def bench_efflux(spacings: tuple[float, ...] = (0.005, 0.0035, 0.0025)) -> dict:
     Args:
         spacings: particle spacings, m (the envs' ``spacing=``).
 
+    Raises:
+        InputError: a spacing outside the envs' range (2.5-7 mm).
+
     Returns:
         ``{"rows": [{"spacing", "particles", "hole_spacings", "discharge", "drain_s",
         "torricelli_s", "ratio", "seconds"}, ...]}``; ``hole_spacings`` is the hole's
@@ -154,13 +157,14 @@ def bench_efflux(spacings: tuple[float, ...] = (0.005, 0.0035, 0.0025)) -> dict:
 
     import numpy as np
 
-    from pour_gym.fluid.pbf import PBFConfig
+    from pour_gym.envs.base import fluid_config_at
     from pour_gym.fluid.validation import HOLE_RADIUS, R_IN, efflux
 
     column = 0.08  # m: the water's starting depth
+    configs = [fluid_config_at(None, spacing) for spacing in spacings]  # the envs' range
     rows = []
-    for spacing in tqdm(spacings, desc="bench efflux", file=sys.stderr):
-        config = PBFConfig(spacing=spacing)
+    bar = tqdm(spacings, desc="bench efflux", file=sys.stderr)
+    for spacing, config in zip(bar, configs, strict=True):
         start = time.perf_counter()
         run = efflux(start_height=column, config=config, num_threads=1)
         rows.append(
