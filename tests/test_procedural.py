@@ -62,6 +62,10 @@ def test_families_have_their_sizes_and_are_disjoint():
                                                    "procedural:3@7#2")  # fmt: skip
     shapes = {tuple(sorted(member_spec(n).to_dict().items()))[1:] for n in train}
     assert not shapes & {tuple(sorted(member_spec(n).to_dict().items()))[1:] for n in test}
+    # A comma-separated list longer than a file name may be (255 characters) is a list,
+    # not a lookup the system refuses.
+    many = ",".join(test[25:50])
+    assert len(many) > 255 and expand_containers(many) == test[25:50]
 
 
 def test_a_member_is_rebuilt_bit_for_bit_from_its_name(built):

@@ -25,6 +25,18 @@ from pour_gym.errors import InputError
 from pour_gym.objects import procedural
 
 
+def _existing_path(s: str) -> bool:
+    """Whether ``s`` names an existing file or folder.
+
+    A list of many names is too long to be one: the system refuses to look it up, which is
+    an answer, not an error.
+    """
+    try:
+        return Path(s).exists()
+    except OSError:
+        return False
+
+
 def expand_containers(spec: str | Path | list | tuple) -> tuple[str, ...]:
     """Container names or paths from a split name, a name, a path, or a list of them.
 
@@ -45,7 +57,7 @@ def expand_containers(spec: str | Path | list | tuple) -> tuple[str, ...]:
         if s in SPLITS:
             return SPLITS[s]
         # "a,b,c" lists containers (unless it is the name of an existing file).
-        spec = s.split(",") if "," in s and not Path(s).exists() else [s]
+        spec = s.split(",") if "," in s and not _existing_path(s) else [s]
     items: tuple[str, ...] = ()
     for x in spec:  # a split or a family inside a list stands for its containers
         x = str(x)
