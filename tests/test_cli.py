@@ -6,6 +6,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from pour_gym.apps.commands import number_list
+from pour_gym.errors import InputError
 from pour_gym.mesh.fileio import save_point_cloud
 from pour_gym.mesh.scan import ScanConfig, turntable_scan
 
@@ -31,6 +33,23 @@ def test_bench_efflux_names_a_spacing_it_cannot_take(cli):
         proc = cli("bench", "efflux", "--sizes", bad, check=False)
         assert proc.returncode == 2 and words in proc.stderr
         assert "Traceback" not in proc.stderr
+
+
+def test_bench_names_a_size_that_is_not_a_positive_number(cli):
+    proc = cli("bench", "fluid", "--sizes", "300,abc", check=False)
+    assert proc.returncode == 2
+    assert "'abc' in '300,abc' is not one of particle counts" in proc.stderr
+    assert "Traceback" not in proc.stderr
+    for bad, kind, named in (
+        ("-5", int, "'-5' in '-5'"),
+        ("5k", int, "'5k' in '5k'"),
+        ("0", int, "'0' in '0'"),
+        ("2.5,,3", float, "'' in '2.5,,3'"),
+    ):
+        with pytest.raises(InputError, match=f"{named} is not one of spacings"):
+            number_list(bad, "spacings", kind)
+    assert number_list("5,3.5", "spacings", float) == [5.0, 3.5]
+    assert number_list("300, 2000", "counts") == [300, 2000]
 
 
 @pytest.mark.parametrize("command", ["train", "search"])

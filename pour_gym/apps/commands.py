@@ -341,6 +341,30 @@ def cmd_build_assets(args: argparse.Namespace) -> Output:
     return (done, lambda: f"wrote {len(done)} assets under {root}")
 
 
+def number_list(text: str, what: str, kind: type = int) -> list:
+    """A comma-separated option's numbers, each above 0 (``--sizes 300,1000``).
+
+    Args:
+        text: the option's value.
+        what: what the numbers are, with an example, for the error (``"particle counts
+            (e.g. 300,1000)"``).
+        kind: ``int`` or ``float``.
+
+    Raises:
+        InputError: naming the first value that is not a number of that kind above 0.
+    """
+    numbers = []
+    for item in text.split(","):
+        try:
+            value = kind(item.strip())
+        except ValueError:
+            value = None
+        if value is None or not value > 0:
+            raise InputError(f"{item.strip()!r} in {text!r} is not one of {what}") from None
+        numbers.append(value)
+    return numbers
+
+
 def cmd_bench(args: argparse.Namespace) -> Output:
     """Benchmarks; every result names the machine it ran on (``machine`` in the JSON)."""
     from pour_gym.apps.bench.machine import machine, machine_line
@@ -372,8 +396,9 @@ def _bench(args: argparse.Namespace) -> Output:
     from pour_gym.envs import ENV_IDS
 
     if args.what == "fluid":
-        sizes = [int(s) for s in (args.sizes or "300,1000,2000,4000,16000").split(",")]
-        bullet = [int(s) for s in args.bullet_sizes.split(",") if s]
+        counts = "particle counts (e.g. 300,1000)"
+        sizes = number_list(args.sizes or "300,1000,2000,4000,16000", counts)
+        bullet = number_list(args.bullet_sizes, counts) if args.bullet_sizes else []
         result = bench_fluid(sizes, bullet, repeats=args.repeats)
         doc = {k: v for k, v in result.items() if k != "rows"}
         return (doc, lambda: fluid_table(result))
@@ -393,13 +418,8 @@ def _bench(args: argparse.Namespace) -> Output:
     if args.what == "efflux":
         from pour_gym.apps.bench.liquids import bench_efflux, efflux_table
 
-        try:
-            mm = [float(s) for s in args.sizes.split(",")] if args.sizes else []
-        except ValueError:
-            raise InputError(
-                f"--sizes for efflux are particle spacings in mm (e.g. 5,3.5,2.5), not "
-                f"{args.sizes!r}"
-            ) from None
+        spacings = "particle spacings in mm (e.g. 5,3.5,2.5)"
+        mm = number_list(args.sizes, spacings, float) if args.sizes else []
         result = bench_efflux(tuple(m / 1000 for m in mm)) if mm else bench_efflux()
         return (result, lambda: efflux_table(result))
     if args.what == "viscosity":
@@ -421,10 +441,10 @@ def _bench(args: argparse.Namespace) -> Output:
         result = bench_ray(repeats=args.repeats)
         return (result, lambda: ray_table(result))
     if args.what == "label":
-        sizes = [int(s) for s in (args.sizes or "5000,10000,20000,40000").split(",")]
+        sizes = number_list(args.sizes or "5000,10000,20000,40000", "vertex counts (e.g. 5000)")
         rows = bench_label(sizes, repeats=args.repeats)
         return ({"label": rows}, lambda: label_table(rows))
-    sizes = [int(s) for s in (args.sizes or "5000,10000,25000,50000,100000").split(",")]
+    sizes = number_list(args.sizes or "5000,10000,25000,50000,100000", "point counts (e.g. 5000)")
     rows = bench_reconstruct(sizes, repeats=args.repeats)
     return ({"reconstruct": rows}, lambda: reconstruct_table(rows))
 
