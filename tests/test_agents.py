@@ -630,6 +630,31 @@ def test_loading_a_model_file_warns_to_trust_its_source(tmp_path):
         load_run(tmp_path)  # a folder without a model.zip
 
 
+
+def test_a_checkpoint_loads_with_its_own_normaliser_and_its_runs_config(tmp_path):
+    # A checkpoint acting on raw observations would be another policy, silently: it loads
+    # with the normaliser of its steps and the config one folder up, or is refused.
+    import shutil
+
+    from pour_gym.agents.training.runs import MODELS, load_run
+
+    shipped = MODELS / "pour-v1-family-sde"
+    ckpt = tmp_path / "run" / "checkpoints"
+    ckpt.mkdir(parents=True)
+    shutil.copy(shipped / "config.json", tmp_path / "run")
+    shutil.copy(shipped / "model.zip", ckpt / "model_100_steps.zip")
+    shutil.copy(shipped / "vecnormalize.pkl", ckpt / "vecnormalize_100_steps.pkl")
+    shutil.copy(shipped / "vecnormalize.pkl", ckpt / "vecnormalize.pkl")  # another's: unused
+    ref = load_run("pour-v1-family-sde")
+    with pytest.warns(UserWarning, match="sources you trust"):
+        run = load_run(ckpt / "model_100_steps.zip")
+    assert run.config == ref.config
+    obs = np.linspace(-1.0, 1.0, 16, dtype=np.float32)[None]
+    assert np.array_equal(run.normalise(obs), ref.normalise(obs))
+    (ckpt / "vecnormalize_100_steps.pkl").unlink()
+    with pytest.raises(InputError, match=r"vecnormalize_100_steps\.pkl is not beside it"):
+        load_run(ckpt / "model_100_steps.zip")
+
 def test_a_noise_schedule_caps_ppo_action_noise_down_to_its_final_std():
     """noise_schedule {start, std}: from ``start`` the policy's std is capped by a cap
     falling geometrically from 1 to ``std`` at the run's end; SAC (no log_std) is refused."""

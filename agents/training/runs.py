@@ -73,12 +73,15 @@ def load_run(model_path: str | Path, algo: str | None = None) -> Run:
     """Load ``model.zip`` with the ``config.json`` and ``vecnormalize.pkl`` beside it.
 
     Args:
-        model_path: the model file, a run folder holding ``model.zip``, or the name of a
-            shipped model (:func:`shipped_models`).
+        model_path: the model file (a run's ``model.zip``, a checkpoint
+            ``checkpoints/model_<steps>_steps.zip`` or ``best/model.zip``, each loaded
+            with its own normaliser and the run's ``config.json``), a run folder holding
+            ``model.zip``, or the name of a shipped model (:func:`shipped_models`).
         algo: the algorithm, if there is no ``config.json`` to say it.
 
     Raises:
-        InputError: no such file, or no way to tell the algorithm.
+        InputError: no such file, no way to tell the algorithm, or a model trained on
+            normalised observations without its normaliser.
     """
     given = Path(model_path)
     # The file itself, a run folder as train.py --out wrote it, or a shipped model's folder.
@@ -90,8 +93,21 @@ def load_run(model_path: str | Path, algo: str | None = None) -> Run:
             f"no model file {str(model_path)!r}: give a model.zip, a run folder holding "
             f"one, or a shipped model ({names})"
         )
-    config_path = path.parent / "config.json"
-    config = json.loads(config_path.read_text()) if config_path.is_file() else {}
+    # A checkpoint (checkpoints/model_<N>_steps.zip) or a kept best (best/model.zip) has
+    # its run's config.json one folder up, and a checkpoint its own steps' normaliser.
+    config_path = next(
+        (p for p in (path.parent / "config.json", path.parent.parent / "config.json")
+         if p.is_file()), None,
+    )  # fmt: skip
+    config = json.loads(config_path.read_text()) if config_path is not None else {}
+    steps = re.fullmatch(r"model_(\d+)_steps\.zip", path.name)
+    stats = path.parent / (f"vecnormalize_{steps.group(1)}_steps.pkl" if steps else NORMALISER)
+    if config.get("normalize") and not stats.is_file():
+        # Acting on raw observations, a model trained on normalised ones is another policy.
+        raise InputError(
+            f"{path} was trained on normalised observations and {stats.name} is not beside "
+            "it: copy the run's normaliser next to the model"
+        )
     name = config.get("algo", algo)
     if name is None:
         raise InputError(f"which algorithm made {path.name}? pass --algo (sac, ppo, td3, tqc)")
@@ -108,7 +124,6 @@ def load_run(model_path: str | Path, algo: str | None = None) -> Run:
     importable_old_paths()  # a model saved before the agents were grouped
     model = algorithm(name).load(path, device="cpu")
     normaliser = None
-    stats = path.parent / NORMALISER
     if stats.is_file():
         with open(stats, "rb") as fh:
             normaliser = pickle.load(fh)  # a VecNormalize without its env
