@@ -630,7 +630,6 @@ def test_loading_a_model_file_warns_to_trust_its_source(tmp_path):
         load_run(tmp_path)  # a folder without a model.zip
 
 
-
 def test_a_checkpoint_loads_with_its_own_normaliser_and_its_runs_config(tmp_path):
     # A checkpoint acting on raw observations would be another policy, silently: it loads
     # with the normaliser of its steps and the config one folder up, or is refused.
@@ -654,6 +653,7 @@ def test_a_checkpoint_loads_with_its_own_normaliser_and_its_runs_config(tmp_path
     (ckpt / "vecnormalize_100_steps.pkl").unlink()
     with pytest.raises(InputError, match=r"vecnormalize_100_steps\.pkl is not beside it"):
         load_run(ckpt / "model_100_steps.zip")
+
 
 def test_a_noise_schedule_caps_ppo_action_noise_down_to_its_final_std():
     """noise_schedule {start, std}: from ``start`` the policy's std is capped by a cap
