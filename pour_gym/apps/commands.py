@@ -360,7 +360,7 @@ def number_list(text: str, what: str, kind: type = int) -> list:
         except ValueError:
             value = None
         if value is None or not value > 0:
-            raise InputError(f"{item.strip()!r} in {text!r} is not one of {what}") from None
+            raise InputError(f"{item.strip()!r} in {text!r} is not one of {what}")
         numbers.append(value)
     return numbers
 
