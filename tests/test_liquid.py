@@ -213,6 +213,17 @@ def test_a_dam_break_front_follows_martin_and_moyce():
     assert run.fronts[-1] > 6.5  # it reached the far wall (7 a)
 
 
+@pytest.mark.parametrize("speed", [-0.5, float("nan")])
+def test_a_dam_break_refuses_a_gate_speed_that_is_no_speed(speed):
+    from pour_gym.errors import InputError
+    from pour_gym.fluid.validation import dam_break, gate_speed_limit
+
+    with pytest.raises(InputError, match="gate_speed must be a speed of 0 m/s or more"):
+        dam_break(gate_speed=speed, fields=(None, None))
+    # Lauber and Hager's slowest gate for a column 2 a = 11.43 cm deep: sqrt(g h / 2).
+    assert gate_speed_limit(0.1143) == pytest.approx(0.7488, abs=1e-4)
+
+
 def test_honey_pours_later_slower_and_longer_than_water():
     """The red cup tilted at 30 deg/s to 110 deg, held, set upright: honey starts later
     (at a larger tilt), flows at a lower peak rate, leaves some in the cup, and its stream

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from pour_gym.errors import InputError
 from pour_gym.fluid.pbf import PBFConfig, PBFluid
 from pour_gym.fluid.sdf import SignedDistanceField, build_sdf
 from pour_gym.objects import cylinder_cup
@@ -478,6 +479,7 @@ class DamBreak:
 
     Attributes:
         width: the column's width a, m (its height 2a).
+        gate_speed: the dam's upward speed on release, m/s (0: removed at once).
         times: (T,) ``t sqrt(2 g / a)``.
         fronts: (T,) ``x / a``, the front's distance from the back wall over a.
         band: (T, 2) the lowest and highest front Martin and Moyce measured at each time
@@ -486,6 +488,7 @@ class DamBreak:
     """
 
     width: float
+    gate_speed: float
     times: np.ndarray
     fronts: np.ndarray
     band: np.ndarray
@@ -508,11 +511,25 @@ def tank_fields(width: float = DAM_WIDTH, cache_dir=None):
             build_sdf(dam, spacing=0.001, cache_dir=cache_dir))  # fmt: skip
 
 
+def gate_speed_limit(height: float) -> float:
+    """The slowest gate that still releases a column as a dam break, m/s.
+
+    Lauber and Hager (1998, J. Hydraul. Res. 36(5), 761-773) take a gate lifted within
+    ``sqrt(2 h / g)`` as an instantaneous release of a column ``h`` deep: lifted at
+    constant speed, it clears the column at ``sqrt(g h / 2)``.
+
+    Args:
+        height: the column's height, m.
+    """
+    return float(np.sqrt(9.81 * height / 2.0))
+
+
 def dam_break(
     width: float = DAM_WIDTH,
     config: PBFConfig | None = None,
     num_threads: int | None = None,
     fields=None,
+    gate_speed: float = 0.0,
 ) -> DamBreak:
     """A column a wide and 2a high, held by a dam for 1 s, released; its front over time.
 
@@ -527,7 +544,12 @@ def dam_break(
         config: the fluid's parameters.
         num_threads: the fluid's threads.
         fields: :func:`tank_fields`, computed if not given.
+        gate_speed: 0 removes the dam at once; above 0, it is lifted at this speed (m/s),
+            as a gate is in a flume (:func:`gate_speed_limit`), and removed once clear of
+            the column.
     """
+    if not (np.isfinite(gate_speed) and gate_speed >= 0.0):
+        raise InputError(f"gate_speed must be a speed of 0 m/s or more, not {gate_speed}")
     cfg = config or PBFConfig()
     tank, dam = fields if fields is not None else tank_fields(width)
     s = cfg.spacing
@@ -540,7 +562,6 @@ def dam_break(
     plug = fluid.add_collider(dam)
     for _ in range(60):
         fluid.step(1 / 60)
-    fluid.colliders.remove(plug)
     scale = np.sqrt(2.0 * 9.81 / width)
     dt, t, times, fronts = 1 / 120, 0.0, [], []
     while True:
@@ -549,6 +570,13 @@ def dam_break(
         fronts.append(front / width)
         if front > TANK_LENGTH - 2 * s or t > 2.0:
             break
+        # The gate's bottom edge rises from the floor; the fluid moves it over the step.
+        lift = gate_speed * (t + dt)
+        if plug in fluid.colliders:
+            if gate_speed == 0.0 or lift > 2.0 * width:
+                fluid.colliders.remove(plug)
+            else:
+                plug.translation = np.array([0.0, 0.0, lift])
         fluid.step(dt)
         t += dt
     times_a, fronts_a = np.array(times), np.array(fronts)
@@ -562,4 +590,4 @@ def dam_break(
     band[seen, 1] = np.nanmax(curves[:, seen], axis=0)
     within = (fronts_a >= 0.95 * band[:, 0]) & (fronts_a <= 1.05 * band[:, 1])
     inside = float(within[seen].mean()) if seen.any() else float("nan")
-    return DamBreak(width, times_a, fronts_a, band, inside)
+    return DamBreak(width, float(gate_speed), times_a, fronts_a, band, inside)

@@ -111,25 +111,29 @@ def bench_flows(liquids: tuple[str, ...] = ("water", "oil", "syrup", "honey"), o
     from dataclasses import asdict
 
     from pour_gym.fluid.liquid import PRESETS
-    from pour_gym.fluid.validation import dam_break, efflux
+    from pour_gym.fluid.validation import DAM_WIDTH, dam_break, efflux, gate_speed_limit
     from pour_gym.sim.liquid_pour import liquid_pour
 
     def plain(result) -> dict:
         return {k: v.tolist() if hasattr(v, "tolist") else v for k, v in asdict(result).items()}
 
-    bar = tqdm(total=3 + len(liquids), desc="bench flows", file=sys.stderr)
+    bar = tqdm(total=4 + len(liquids), desc="bench flows", file=sys.stderr)
     drains = {}
     for name in ("water", "honey"):
         drains[name] = plain(efflux(config=PRESETS[name].fluid_config(), num_threads=1))
         bar.update()
     dam = plain(dam_break(num_threads=1))
     bar.update()
+    # The same column behind a gate lifted as slowly as a dam break allows: how much of the
+    # front's early lead an instant release accounts for.
+    gate = plain(dam_break(num_threads=1, gate_speed=gate_speed_limit(2.0 * DAM_WIDTH)))
+    bar.update()
     pours = {}
     for name in liquids:
         pours[name] = plain(liquid_pour(name, num_threads=1))
         bar.update()
     bar.close()
-    doc = {"efflux": drains, "dam_break": dam, "pours": pours}
+    doc = {"efflux": drains, "dam_break": dam, "dam_break_gate": gate, "pours": pours}
     if out is not None:
         doc["figure"] = str(flows_figure(doc, out))
     return doc
@@ -224,6 +228,10 @@ def flows_figure(doc: dict, out) -> str:
     ax = axes[1]
     d = doc["dam_break"]
     ax.plot(d["times"], d["fronts"], color=PRESETS["water"].color, lw=2, label="water, here")
+    if "dam_break_gate" in doc:
+        g = doc["dam_break_gate"]
+        ax.plot(g["times"], g["fronts"], color=PRESETS["water"].color, lw=1.5, ls="--",
+                label=f"gate lifted at {g['gate_speed']:.2f} m/s")  # fmt: skip
     for (label, (tt, zz)), marker in zip(MARTIN_MOYCE.items(), "os", strict=True):
         ax.plot(tt, zz, marker, mfc="none", color="k", label=f"Martin and Moyce, {label}")
     ax.set(xlabel="t sqrt(2 g / a)", ylabel="front x / a", title="dam break, a = 5.7 cm",
@@ -242,6 +250,25 @@ def flows_figure(doc: dict, out) -> str:
     return str(path)
 
 
+def _front_ratios(dam: dict) -> tuple[float, float, float]:
+    """A dam break's front against Martin and Moyce's band (``DamBreak`` as a dict).
+
+    Returns:
+        (its largest ratio to the band's top before T = 2.5; from T = 2.5 on, its smallest
+        ratio to the band's bottom and its largest to the band's top).
+    """
+    import numpy as np
+
+    t, z, band = np.array(dam["times"]), np.array(dam["fronts"]), np.array(dam["band"])
+    seen = ~np.isnan(band[:, 0])
+    early, late = seen & (t < 2.5), seen & (t >= 2.5)
+    return (
+        float(np.max(z[early] / band[early, 1])),
+        float(np.min(z[late] / band[late, 0])),
+        float(np.max(z[late] / band[late, 1])),
+    )
+
+
 def flows_table(doc: dict) -> str:
     """Markdown tables of :func:`bench_flows`."""
     efflux = markdown_table(
@@ -250,11 +277,14 @@ def flows_table(doc: dict) -> str:
         [[name, f"{e['discharge']:.3f}", f"{e['drain_s']:.3f}", f"{e['torricelli_s']:.3f}",
           f"{e['drain_s'] / e['torricelli_s']:.3f}"] for name, e in doc["efflux"].items()],
     )  # fmt: skip
-    d = doc["dam_break"]
-    dam = (
-        f"dam break (a = {d['width'] * 100:.2f} cm): the front within Martin and Moyce's "
-        f"band (their two columns, 5 % either way) at {d['inside']:.0%} of the times"
-    )
+    dams = [doc["dam_break"]] + ([doc["dam_break_gate"]] if "dam_break_gate" in doc else [])
+    dam = markdown_table(
+        ["dam break (a = 5.7 cm)", "front within Martin and Moyce's band (5 % either way)",
+         "largest lead before T = 2.5", "from T = 2.5 to the far wall, front / band"],
+        [[f"gate lifted at {d['gate_speed']:.2f} m/s" if d["gate_speed"] else "dam removed at once",
+          f"{d['inside']:.0%}", f"{_front_ratios(d)[0]:.2f}x the band's top",
+          "{:.2f}-{:.2f}x its edges".format(*_front_ratios(d)[1:])] for d in dams],
+    )  # fmt: skip
     pours = markdown_table(
         ["pour from the red cup", "particles", "onset, s", "onset, deg", "peak flow, 1/s",
          "poured", "runs on after the return starts, s"],
