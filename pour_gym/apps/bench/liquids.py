@@ -278,12 +278,19 @@ def flows_table(doc: dict) -> str:
           f"{e['drain_s'] / e['torricelli_s']:.3f}"] for name, e in doc["efflux"].items()],
     )  # fmt: skip
     dams = [doc["dam_break"]] + ([doc["dam_break_gate"]] if "dam_break_gate" in doc else [])
+    rows = []
+    for d in dams:
+        lead, low, high = _front_ratios(d)
+        release = "dam removed at once"
+        if d["gate_speed"]:
+            release = f"gate lifted at {d['gate_speed']:.2f} m/s"
+        rows.append([release, f"{d['inside']:.0%}", f"{lead:.2f}x the band's top",
+                     f"{low:.2f}-{high:.2f}x its edges"])  # fmt: skip
     dam = markdown_table(
-        ["dam break (a = 5.7 cm)", "front within Martin and Moyce's band (5 % either way)",
-         "largest lead before T = 2.5", "from T = 2.5 to the far wall, front / band"],
-        [[f"gate lifted at {d['gate_speed']:.2f} m/s" if d["gate_speed"] else "dam removed at once",
-          f"{d['inside']:.0%}", f"{_front_ratios(d)[0]:.2f}x the band's top",
-          "{:.2f}-{:.2f}x its edges".format(*_front_ratios(d)[1:])] for d in dams],
+        [f"dam break (a = {dams[0]['width'] * 100:.1f} cm)",
+         "front within Martin and Moyce's band (5 % either way)", "largest lead before T = 2.5",
+         "from T = 2.5 to the far wall, front / band"],
+        rows,
     )  # fmt: skip
     pours = markdown_table(
         ["pour from the red cup", "particles", "onset, s", "onset, deg", "peak flow, 1/s",
