@@ -23,6 +23,7 @@ if TYPE_CHECKING:
 NAMESPACE = "PourGym"
 POUR_V0 = "PourGym/Pour-v0"
 POUR_V1 = "PourGym/Pour-v1"
+POUR_V2 = "PourGym/Pour-v2"
 PANDA_POUR_V0 = "PourGym/PandaPour-v0"
 PARTICLE_DROP_V0 = "PourGym/ParticleDrop-v0"
 TILT_POUR_V0 = "PourGym/TiltPour-v0"
@@ -37,6 +38,8 @@ POUR_V1_DEFAULTS = {
     "success_weight": 2.0,
     "overshoot_weight": 1.0,
 }
+# Pour-v2: Pour-v1 with a slower tilt (the class's Version History says why).
+POUR_V2_DEFAULTS = {**POUR_V1_DEFAULTS, "max_tilt_rate": 20.0}
 
 
 @dataclass(frozen=True)
@@ -72,6 +75,9 @@ ENVS: tuple[EnvEntry, ...] = (
     EnvEntry(POUR_V0, "pour_gym.envs.pour:PourEnv", 250, quick=_QUICK_POUR),
     EnvEntry(
         POUR_V1, "pour_gym.envs.pour:PourEnv", 250, kwargs=POUR_V1_DEFAULTS, quick=_QUICK_POUR
+    ),
+    EnvEntry(
+        POUR_V2, "pour_gym.envs.pour:PourEnv", 250, kwargs=POUR_V2_DEFAULTS, quick=_QUICK_POUR
     ),
     EnvEntry(PARTICLE_DROP_V0, "pour_gym.envs.particle_drop:ParticleDropEnv", 1),
     EnvEntry(TILT_POUR_V0, "pour_gym.envs.tilt_pour:TiltPourEnv", 1),
@@ -113,8 +119,8 @@ def register_envs() -> None:
                 kwargs=dict(e.kwargs),
             )
     # Gymnasium calls an id "out of date" whenever a higher version of its name is
-    # registered. Pour-v0 and Pour-v1 are two sets of defaults for one task, both kept on
-    # purpose (Pour-v0's Version History): the warning would send v0's users to v1 for
+    # registered. Pour-v0, v1 and v2 are sets of defaults for one task, all kept on
+    # purpose (PourEnv's Version History): the warning would send v0's users to v2 for
     # nothing. Silenced for those ids alone, once (filterwarnings moves a repeated filter
     # to the front instead of adding it again).
     versions = [e.id.rpartition("-v") for e in ENVS]

@@ -17,7 +17,7 @@ from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 from pour_gym.agents.policies.rollout import rollout
 from pour_gym.agents.policies.scripted import ScriptedPourPolicy, action_settings
-from pour_gym.envs import ENV_IDS, ENVS, POUR, POUR_V0, POUR_V1, entry, task_of
+from pour_gym.envs import ENV_IDS, ENVS, POUR, POUR_V0, POUR_V1, POUR_V2, entry, task_of
 from pour_gym.envs.rules import lip_action, lip_goal
 from pour_gym.features import fluid_features, relative_distance_height
 from pour_gym.objects import cylinder_cup
@@ -28,7 +28,7 @@ def test_every_registered_id_is_in_the_registry_list_the_generic_tests_use():
     registered under PourGym/ anywhere else would escape them, so none may be."""
     registered = {env_id for env_id in gym.registry if env_id.startswith("PourGym/")}
     assert registered == set(ENV_IDS) == {e.id for e in ENVS}
-    assert len(ENV_IDS) == len(set(ENV_IDS)) == 5
+    assert len(ENV_IDS) == len(set(ENV_IDS)) == 6
     for e in ENVS:
         spec = gym.spec(e.id)
         assert spec.entry_point == e.entry_point
@@ -40,9 +40,9 @@ def test_every_registered_id_is_in_the_registry_list_the_generic_tests_use():
 
 
 def test_each_env_names_its_task_and_the_task_scores_an_episode():
-    assert [task_of(e) for e in ENV_IDS] == [POUR, POUR, task_of("PourGym/ParticleDrop-v0"),
+    assert [task_of(e) for e in ENV_IDS] == [POUR, POUR, POUR, task_of("PourGym/ParticleDrop-v0"),
                                             task_of("PourGym/TiltPour-v0"), POUR]  # fmt: skip
-    assert [task_of(e).pours for e in ENV_IDS] == [True, True, False, False, True]
+    assert [task_of(e).pours for e in ENV_IDS] == [True, True, True, False, False, True]
     info = {"is_success": True, "poured": 95, "target_amount": 100, "spilled": 2,
             "fluid_corrections": 7}  # fmt: skip
     assert POUR.metrics(info, 1.5) == {
@@ -86,6 +86,22 @@ def test_pour_v1_is_pour_v0_with_learnable_defaults_and_hide_blinds_entries(make
     np.testing.assert_array_equal(oh[kept], o1[kept])
     with pytest.raises(ValueError, match="has no \\['lip_x'\\]"):
         make_env(POUR_V1, objects="red_cup", hide=["lip_x"])  # a state entry, not a feature
+
+
+def test_pour_v2_is_pour_v1_with_a_tilt_three_times_slower(make_env):
+    """Pour-v2 changes one default: the tilt rate, 20 deg/s (2 deg a 0.1 s step) for 60."""
+    assert gym.spec(POUR_V2).kwargs == {**gym.spec(POUR_V1).kwargs, "max_tilt_rate": 20.0}
+    v1, v2 = make_env(POUR_V1, objects="red_cup"), make_env(POUR_V2, objects="red_cup")
+    o1, _ = v1.reset(seed=3)
+    o2, _ = v2.reset(seed=3)
+    np.testing.assert_array_equal(o1, o2)
+    tilt = v1.unwrapped.obs_names.index("tilt")
+    full = np.array([0.0, 0.0, 0.0, 1.0], dtype=np.float32)  # towards the largest tilt
+    for k in range(1, 4):
+        o1, *_ = v1.step(full)
+        o2, *_ = v2.step(full)
+        assert 90.0 * o1[tilt] == pytest.approx(6.0 * k, abs=1e-3)
+        assert 90.0 * o2[tilt] == pytest.approx(2.0 * k, abs=1e-3)
 
 
 @pytest.mark.parametrize("env_id", ENV_IDS)
