@@ -680,3 +680,42 @@ def test_a_noise_schedule_caps_ppo_action_noise_down_to_its_final_std():
     sac = SAC("MlpPolicy", env, learning_starts=0, seed=0, device="cpu")
     with pytest.raises(InputError, match="log_std"):
         sac.learn(10, callback=noise_callback(schedule, 10))
+
+
+@pytest.mark.parametrize("vec", ["native", "subproc"])
+def test_an_env_schedule_sets_the_tilt_rate_of_every_training_env_by_step(vec):
+    """env_schedule {max_tilt_rate: [[step, value], ...]}: each value from its step on, the
+    env's own before the first; set on every env of the native vector env and of
+    SubprocVecEnv's workers before each rollout; bad schedules refused by name."""
+    from stable_baselines3 import PPO
+
+    from pour_gym.agents.training.env_schedule import EnvSchedule, env_schedule_callback
+    from pour_gym.agents.training.vector import training_vec_env
+
+    schedule = EnvSchedule.from_recipe({"max_tilt_rate": [[0, 60], [128, 20]]})
+    assert [schedule.value(s) for s in (0, 127, 128, 10**7)] == [60.0, 60.0, 20.0, 20.0]
+    assert EnvSchedule.from_recipe({"max_tilt_rate": [[100, 30]]}).value(99) is None
+    assert schedule.to_dict() == {"max_tilt_rate": [[0, 60.0], [128, 20.0]]}
+    for bad in ({"max_speed": [[0, 1]]}, {"max_tilt_rate": [[0, -1]]}, {"max_tilt_rate": 60},
+                {"max_tilt_rate": [[5, 1], [5, 2]]}, {"max_tilt_rate": []},
+                {"max_tilt_rate": [[0, 60]], "max_speed": [[0, 1]]}):  # fmt: skip
+        with pytest.raises(InputError, match="env_schedule"):
+            EnvSchedule.from_recipe(bad)
+    kwargs = {"objects": "red_cup", "amount_range": (40, 80), "max_episode_steps": 16}
+    venv = training_vec_env("PourGym/Pour-v2", 2, 3, kwargs, None, vec)
+    try:
+        assert venv.get_attr("max_tilt_rate") == [20.0, 20.0]  # Pour-v2's own
+        model = PPO("MlpPolicy", venv, n_steps=64, batch_size=64, n_epochs=1, seed=0,
+                    device="cpu")  # fmt: skip
+        model.learn(128, callback=env_schedule_callback(schedule))  # one rollout of 2 x 64
+        assert venv.get_attr("max_tilt_rate") == [60.0, 60.0]
+        model.learn(128, callback=env_schedule_callback(schedule), reset_num_timesteps=False)
+        assert venv.get_attr("max_tilt_rate") == [20.0, 20.0]
+    finally:
+        venv.close()
+    drop = training_vec_env("PourGym/TiltPour-v0", 1, 3, {"objects": "red_cup"}, None, "dummy")
+    with pytest.raises(InputError, match="do not have"):
+        PPO("MlpPolicy", drop, n_steps=8, batch_size=8, device="cpu").learn(
+            8, callback=env_schedule_callback(schedule)
+        )
+    drop.close()

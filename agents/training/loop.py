@@ -16,6 +16,7 @@ from pour_gym.agents.training.curves import (
     record_curve_from_checkpoints,
     training_callbacks,
 )
+from pour_gym.agents.training.env_schedule import env_schedule_callback
 from pour_gym.agents.training.moved_modules import importable_old_paths
 from pour_gym.agents.training.noise import noise_callback
 from pour_gym.agents.training.recipes import Recipe, algorithm_arguments, load_recipe
@@ -127,6 +128,7 @@ def train(config: TrainConfig) -> dict:
         "noise_schedule": (
             dataclasses.asdict(recipe.noise_schedule) if recipe.noise_schedule else None
         ),
+        "env_schedule": recipe.env_schedule.to_dict() if recipe.env_schedule else None,
         # What the environments were made with (recipe and run): evaluate uses it.
         "env_kwargs": arguments,
     }
@@ -187,6 +189,8 @@ def train(config: TrainConfig) -> dict:
                                        env_kwargs)  # fmt: skip
         if recipe.noise_schedule is not None:
             callbacks.callbacks.append(noise_callback(recipe.noise_schedule, config.timesteps))
+        if recipe.env_schedule is not None:
+            callbacks.callbacks.append(env_schedule_callback(recipe.env_schedule))
         model.learn(remaining, callback=callbacks, reset_num_timesteps=checkpoint is None)
         # The finished run is a checkpoint too: running the command again only evaluates.
         model.save(ckpt_dir / f"model_{model.num_timesteps}_steps.zip")

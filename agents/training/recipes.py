@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING
 import gymnasium as gym
 import yaml
 
+from pour_gym.agents.training.env_schedule import EnvSchedule
 from pour_gym.agents.training.moved_modules import importable_old_paths
 from pour_gym.agents.training.noise import NoiseSchedule
 from pour_gym.errors import InputError
@@ -41,6 +42,7 @@ RECIPE_KEYS = {
     "stochastic_eval": "evaluate and draw the curve with the policy's sampled actions (seeded)",
     "residual": "learn a correction to the scripted expert's actions (see ResidualConfig)",
     "noise_schedule": "shrink the action noise over the run's end (see NoiseSchedule)",
+    "env_schedule": "an env argument changed at step counts: a curriculum (see EnvSchedule)",
 }
 RESIDUAL_WRAPPER = "pour_gym.agents.policies.residual.ExpertResidual"
 
@@ -96,7 +98,7 @@ class Recipe:
     Attributes:
         hyperparameters: the algorithm's constructor arguments.
         n_envs, policy, normalize, env_kwargs, env_wrapper, torch_threads, demonstrations,
-            stochastic_eval, residual, noise_schedule: the training's own keys
+            stochastic_eval, residual, noise_schedule, env_schedule: the training's own keys
             (:data:`RECIPE_KEYS`).
     """
 
@@ -111,6 +113,7 @@ class Recipe:
     stochastic_eval: bool = False
     residual: ResidualConfig | None = None
     noise_schedule: NoiseSchedule | None = None
+    env_schedule: EnvSchedule | None = None
 
     def wrapper(self) -> Callable[[gym.Env], gym.Env] | None:
         """A function that wraps an env in :attr:`env_wrapper`'s wrappers (None if none).
@@ -199,6 +202,9 @@ def load_recipe(
         residual=residual,
         noise_schedule=(
             NoiseSchedule.from_recipe(own["noise_schedule"]) if own.get("noise_schedule") else None
+        ),
+        env_schedule=(
+            EnvSchedule.from_recipe(own["env_schedule"]) if own.get("env_schedule") else None
         ),
     )
     if recipe.residual is not None and recipe.demonstrations is not None:
