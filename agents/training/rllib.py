@@ -123,6 +123,10 @@ def ppo_iteration(
                 num_env_runners=env_runners,
                 num_cpus_per_env_runner=1,
                 rollout_fragment_length="auto",
+                # RLlib discards a runner's samples after 60 s by default: a fluid env
+                # on a busy laptop (its first reset builds the containers' fields) can
+                # take longer, and the iteration then trains on nothing.
+                sample_timeout_s=600.0,
             )
             .training(
                 train_batch_size_per_learner=batch_size,
