@@ -201,10 +201,9 @@ class PourEnv(PourGymEnv):
       200k steps, scored 0.56 over ``procedural:test`` by its mean action against 0.41
       trained on at 60 deg/s (docs: learning from the reward, "a slower tilt"; 0.66 at
       1M). From scratch at 20 deg/s the same PPO found the pour and lost it again: train
-      at 60 deg/s first (the recipe key ``env_schedule``). The scripted expert, tuned at
-      60 deg/s, loses a little over the family (0.94 against 0.975 on the same episodes)
-      and much on the catalogue (0.49 against 1.00: its slower pour and return run past
-      the 250-step limit in 40 % of the episodes, "unfinished").
+      at 60 deg/s first (the recipe key ``env_schedule``). The scripted expert, which
+      keeps its tilt rates in deg/s, scores 0.94 over the family (0.975 at 60 deg/s on
+      the same episodes) and 0.98 on the catalogue (1.00).
     * v1: the same class, task and physics as v0 with the defaults under which a standard
       learner learns the task from its reward (docs: learning from the reward):
       ``tilt_control="angle"`` (a zero action holds 57.5 deg, so exploration reaches the

@@ -246,6 +246,24 @@ def test_the_scripted_policy_pours_through_the_target_lip_control(make_env):
         assert info["is_success"] and info["spilled"] == 0, info
 
 
+def test_the_scripted_policy_keeps_its_tilt_rates_in_deg_per_s_on_pour_v2(make_env):
+    """At Pour-v2's 20 deg/s the expert's slow tilt is the 3.6 deg/s it was tuned at on
+    Pour-v1's 60 (an action three times larger), and it pours the pybullet mug within the
+    250-step limit, full size (with its rates as shares of the rate, 1.2 deg/s, its pour
+    and return ran past the limit in 10 of 10 episodes)."""
+    v1, v2 = action_settings(POUR_V1), action_settings(POUR_V2)
+    assert (v1["max_tilt_rate"], v2["max_tilt_rate"]) == (60.0, 20.0)
+    fast, slow = ScriptedPourPolicy(**v1), ScriptedPourPolicy(**v2)
+    assert slow._slow * 20.0 == pytest.approx(fast._slow * 60.0) == pytest.approx(3.6)
+    assert slow._lead == pytest.approx(3 * fast._lead)
+    with pytest.raises(ValueError, match="tuned_tilt_rate"):
+        ScriptedPourPolicy(tuned_tilt_rate=0.0)
+    env = make_env(POUR_V2, objects="pybullet_mug", source_particles=None, amount_range=None)
+    for seed in (10000, 10001):
+        info = rollout(env, slow, seed=seed).info
+        assert info["is_success"] and info["spilled"] == 0, info
+
+
 @pytest.mark.parametrize("obs_mode", ["features", "state"])
 def test_observe_flow_adds_the_particles_out_of_the_source_per_step(obs_mode, make_env):
     """out_flow is the drop of in_source over a step, over T; the other entries unchanged."""

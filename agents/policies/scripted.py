@@ -92,6 +92,12 @@ class ScriptedPourPolicy:
             (the policy only ever lowers the lip, and pours from the lowest height).
         lip_speed: the env's ``max_speed``, m/s (``"target"`` only).
         dt: the env's step, s (``"angle"`` and ``"target"`` only).
+        tuned_tilt_rate: the ``max_tilt_rate`` (deg/s) at which ``slow_rate``,
+            ``back_rate`` and ``lead`` hold as given. At another rate the policy keeps
+            their meaning in deg/s and seconds: the slow and back rates scaled by
+            ``tuned_tilt_rate / max_tilt_rate`` (at most 1, the fastest tilt), the lead by
+            the same ratio (a slower tilt back lets more run out). Full-rate phases (to
+            the lip's fluid, back for good) go as fast as the env allows.
     """
 
     lip_offset: float = 0.6
@@ -112,6 +118,7 @@ class ScriptedPourPolicy:
     lip_control: str = "velocity"
     lip_speed: float = 0.15
     dt: float = 0.1
+    tuned_tilt_rate: float = 60.0
 
     def __post_init__(self) -> None:
         if self.tilt_control not in TILT_CONTROLS:
@@ -120,6 +127,16 @@ class ScriptedPourPolicy:
             )
         if self.lip_control not in LIP_CONTROLS:
             raise ValueError(f"lip_control must be one of {LIP_CONTROLS}, not {self.lip_control!r}")
+        if not self.max_tilt_rate > 0 or not self.tuned_tilt_rate > 0:
+            raise ValueError(
+                "max_tilt_rate and tuned_tilt_rate must be > 0 deg/s, not "
+                f"{self.max_tilt_rate} and {self.tuned_tilt_rate}"
+            )
+        # The tuned rates as actions at this env's rate (the same deg/s, within the env's).
+        scale = self.tuned_tilt_rate / self.max_tilt_rate
+        self._slow = min(self.slow_rate * scale, 1.0)
+        self._back = min(self.back_rate * scale, 1.0)
+        self._lead = self.lead * scale
         self.reset()
 
     def reset(self) -> None:
@@ -160,16 +177,16 @@ class ScriptedPourPolicy:
         if self.phase == "tilt":
             flow = out - self._last_out
             self._last_out = out
-            if out + self.lead * flow >= 1.0:
+            if out + self._lead * flow >= 1.0:
                 self.phase = "back"
             elif out <= 0.0:
                 # Quickly to where the fluid reaches the lip, then slowly until it pours.
-                action[3] = 1.0 if o[_I["f4_source"]] <= 0.0 else self.slow_rate
+                action[3] = 1.0 if o[_I["f4_source"]] <= 0.0 else self._slow
             else:
                 trickle = self.min_particles / self.amount if self.amount else self.min_flow
                 wanted = max(trickle, self.share * (1.0 - out))
-                step = self.gain * self.slow_rate * (wanted - flow) / wanted
-                action[3] = np.clip(step, -self.back_rate, self.slow_rate)
+                step = self.gain * self._slow * (wanted - flow) / wanted
+                action[3] = np.clip(step, -self._back, self._slow)
         if self.phase == "back":
             action[3] = -1.0
         return action
