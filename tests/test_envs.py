@@ -254,8 +254,10 @@ def test_the_scripted_policy_keeps_its_tilt_rates_in_deg_per_s_on_pour_v2(make_e
     v1, v2 = action_settings(POUR_V1), action_settings(POUR_V2)
     assert (v1["max_tilt_rate"], v2["max_tilt_rate"]) == (60.0, 20.0)
     fast, slow = ScriptedPourPolicy(**v1), ScriptedPourPolicy(**v2)
-    assert slow._slow * 20.0 == pytest.approx(fast._slow * 60.0) == pytest.approx(3.6)
-    assert slow._lead == pytest.approx(3 * fast._lead)
+    (slow_v1, back_v1, lead_v1), (slow_v2, back_v2, lead_v2) = fast.tilt_rates(), slow.tilt_rates()
+    assert (slow_v1, back_v1, lead_v1) == (fast.slow_rate, fast.back_rate, fast.lead)
+    assert slow_v2 * 20.0 == pytest.approx(slow_v1 * 60.0) == pytest.approx(3.6)
+    assert back_v2 == pytest.approx(0.9) and lead_v2 == pytest.approx(3 * lead_v1)
     with pytest.raises(ValueError, match="tuned_tilt_rate"):
         ScriptedPourPolicy(tuned_tilt_rate=0.0)
     env = make_env(POUR_V2, objects="pybullet_mug", source_particles=None, amount_range=None)

@@ -132,12 +132,23 @@ class ScriptedPourPolicy:
                 "max_tilt_rate and tuned_tilt_rate must be > 0 deg/s, not "
                 f"{self.max_tilt_rate} and {self.tuned_tilt_rate}"
             )
-        # The tuned rates as actions at this env's rate (the same deg/s, within the env's).
-        scale = self.tuned_tilt_rate / self.max_tilt_rate
-        self._slow = min(self.slow_rate * scale, 1.0)
-        self._back = min(self.back_rate * scale, 1.0)
-        self._lead = self.lead * scale
         self.reset()
+
+    def tilt_rates(self) -> tuple[float, float, float]:
+        """The slow and back rates as actions at the env's ``max_tilt_rate``, and the lead.
+
+        The tuned rates keep their deg/s (within the env's fastest tilt) and the lead its
+        seconds of tilting back: see ``tuned_tilt_rate``.
+
+        Returns:
+            (slow rate, back rate, lead in steps).
+        """
+        scale = self.tuned_tilt_rate / self.max_tilt_rate
+        return (
+            min(self.slow_rate * scale, 1.0),
+            min(self.back_rate * scale, 1.0),
+            self.lead * scale,
+        )
 
     def reset(self) -> None:
         """Forget the episode (call at every environment reset)."""
@@ -170,6 +181,7 @@ class ScriptedPourPolicy:
                 self.phase = "tilt"
             return action
         action = np.zeros(4)
+        slow, back, lead = self.tilt_rates()
         # What has left the source, as a running maximum: a particle flickering across
         # the lip in and out of the source's cavity counts once (its +1/-1 as a flow
         # would tilt the source back at every other step and stall the pour).
@@ -177,16 +189,16 @@ class ScriptedPourPolicy:
         if self.phase == "tilt":
             flow = out - self._last_out
             self._last_out = out
-            if out + self._lead * flow >= 1.0:
+            if out + lead * flow >= 1.0:
                 self.phase = "back"
             elif out <= 0.0:
                 # Quickly to where the fluid reaches the lip, then slowly until it pours.
-                action[3] = 1.0 if o[_I["f4_source"]] <= 0.0 else self._slow
+                action[3] = 1.0 if o[_I["f4_source"]] <= 0.0 else slow
             else:
                 trickle = self.min_particles / self.amount if self.amount else self.min_flow
                 wanted = max(trickle, self.share * (1.0 - out))
-                step = self.gain * self._slow * (wanted - flow) / wanted
-                action[3] = np.clip(step, -self._back, self._slow)
+                step = self.gain * slow * (wanted - flow) / wanted
+                action[3] = np.clip(step, -back, slow)
         if self.phase == "back":
             action[3] = -1.0
         return action
