@@ -10,6 +10,7 @@ scene, exact point-to-triangle distances with the sign from ray parity) and cach
 from __future__ import annotations
 
 import functools
+import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -202,7 +203,11 @@ def build_sdf(
     field = SignedDistanceField(values, origin, float(spacing))
     if path is not None:
         path.parent.mkdir(parents=True, exist_ok=True)
-        np.savez_compressed(path, values=field.values, origin=origin, spacing=spacing)
+        # Written whole under another name first: an env in another process (a vector
+        # env's worker, a second run) reading the same field never sees half a file.
+        part = path.with_suffix(f".{os.getpid()}.npz")
+        np.savez_compressed(part, values=field.values, origin=origin, spacing=spacing)
+        os.replace(part, path)
     return field
 
 
