@@ -29,14 +29,13 @@ near a free surface or a wall see fewer neighbours.
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from pour_gym.errors import InputError
-from pour_gym.io.cache import cache_dir, mesh_key
+from pour_gym.io.cache import cache_dir, mesh_key, write_npz
 from pour_gym.mesh.measure import Cavity, cavity
 from pour_gym.parts import Part
 
@@ -112,10 +111,7 @@ def container_cavity(
                 return cavity_from_arrays(data)
     water = cavity(mesh, voxel, closed=closed)
     if path is not None:
-        # Written whole under another name first: a reader never sees half a file.
-        part = path.with_suffix(f".{os.getpid()}.npz")
-        np.savez_compressed(part, **cavity_arrays(water))
-        os.replace(part, path)
+        write_npz(path, **cavity_arrays(water))
     return water
 
 

@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 import re
 import zipfile
 from pathlib import Path
@@ -41,6 +40,7 @@ from pour_gym.features import (
     container_geometry,
 )
 from pour_gym.io.cache import cache_dir as user_cache
+from pour_gym.io.cache import write_npz
 from pour_gym.mesh.fileio import load_mesh
 from pour_gym.mesh.measure import opening_problem
 from pour_gym.mesh.surface import Surface
@@ -224,9 +224,9 @@ def _write_loaded(entry: Path, asset: LabelledAsset) -> None:
     episodes are the same bits from a fresh folder or from this entry.
     """
     surface, g = asset.surface, asset.geometry
-    part = entry.with_suffix(f".{os.getpid()}.{id(asset)}.npz")
-    np.savez(
-        part,
+    write_npz(
+        entry,
+        compressed=False,
         vertices=surface.vertices, faces=surface.faces, bounds=surface.bounds,
         is_watertight=surface.is_watertight, body_count=surface.body_count,
         hull_volume=asset.hull_volume,
@@ -235,7 +235,6 @@ def _write_loaded(entry: Path, asset: LabelledAsset) -> None:
         cavity_volume=g.cavity_volume, rim_vertices=g.rim_vertices,
         **cavity_arrays(g.cavity, "cavity_"),
     )  # fmt: skip
-    os.replace(part, entry)  # whole or not at all: a reader never sees half a file
 
 
 def _read_loaded(entry: Path, name: str, labels: np.ndarray, meta: dict) -> LabelledAsset:

@@ -10,7 +10,6 @@ scene, exact point-to-triangle distances with the sign from ray parity) and cach
 from __future__ import annotations
 
 import functools
-import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -19,7 +18,7 @@ import numba as nb
 import numpy as np
 
 from pour_gym.errors import InputError
-from pour_gym.io.cache import mesh_key
+from pour_gym.io.cache import mesh_key, write_npz
 from pour_gym.io.open3d_loader import open3d
 
 if TYPE_CHECKING:  # trimesh takes 0.6 s to import; the fluid's processes need none
@@ -203,11 +202,7 @@ def build_sdf(
     field = SignedDistanceField(values, origin, float(spacing))
     if path is not None:
         path.parent.mkdir(parents=True, exist_ok=True)
-        # Written whole under another name first: an env in another process (a vector
-        # env's worker, a second run) reading the same field never sees half a file.
-        part = path.with_suffix(f".{os.getpid()}.npz")
-        np.savez_compressed(part, values=field.values, origin=origin, spacing=spacing)
-        os.replace(part, path)
+        write_npz(path, values=field.values, origin=origin, spacing=spacing)
     return field
 
 

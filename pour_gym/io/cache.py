@@ -9,6 +9,7 @@ from __future__ import annotations
 import hashlib
 import os
 import re
+import threading
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -31,6 +32,22 @@ def cache_dir(kind: str) -> Path:
     path = Path(root) / kind
     path.mkdir(parents=True, exist_ok=True)
     return path
+
+
+def write_npz(path: Path, *, compressed: bool = True, **arrays) -> None:
+    """Write a cache entry's ``.npz`` whole under another name first, then rename it.
+
+    Envs in other processes (a vector env's workers, a second run) or threads read the
+    same entries: renamed into place, a reader never sees half a file.
+
+    Args:
+        path: the entry.
+        compressed: ``np.savez_compressed`` (else ``np.savez``).
+        **arrays: what the file holds, by name.
+    """
+    part = path.with_suffix(f".{os.getpid()}.{threading.get_ident()}.npz")
+    (np.savez_compressed if compressed else np.savez)(part, **arrays)
+    os.replace(part, path)
 
 
 def mesh_key(mesh: trimesh.Trimesh, *params: float) -> str:
