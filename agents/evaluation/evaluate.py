@@ -40,7 +40,11 @@ class LoadedPolicy:
 
 
 def load_policy(
-    name: str, env_id: str | None = None, algo: str | None = None, actions: str | None = None
+    name: str,
+    env_id: str | None = None,
+    algo: str | None = None,
+    actions: str | None = None,
+    env_kwargs: dict | None = None,
 ) -> LoadedPolicy:
     """A policy by name: ``"scripted"``, ``"random"``, a search's ``search.json``, or a model.
 
@@ -52,6 +56,8 @@ def load_policy(
         algo: the algorithm of a model without a ``config.json``.
         actions: a model's ``"mean"`` action or its ``"sampled"`` ones (seeded per
             episode); None: as its run scored it (``stochastic_eval`` in its config).
+        env_kwargs: the arguments the env will be made with: the scripted policy acts in
+            their action form (``tilt_control``, ``max_tilt_rate``, ...), not the id's.
 
     Raises:
         InputError: an unknown policy, a scripted policy for an env that does not pour, or
@@ -88,7 +94,7 @@ def load_policy(
             raise InputError(
                 f"the scripted policy pours from a source into a target, not in {env_id}"
             )
-        settings = action_settings(env_id)
+        settings = action_settings(env_id, env_kwargs)
         if name == "scripted":
             return LoadedPolicy(ScriptedPourPolicy(**settings), env_id)
         found = load_search(name)  # the best of a policy search, on the containers it searched

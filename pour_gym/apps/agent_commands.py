@@ -88,7 +88,7 @@ def cmd_evaluate(args: argparse.Namespace) -> Output:
     from pour_gym.agents.evaluation.evaluate import evaluate_policy, evaluation_table, load_policy
     from pour_gym.assets import expand_containers
 
-    loaded = load_policy(args.policy, args.env, args.algo, args.actions)
+    loaded = load_policy(args.policy, args.env, args.algo, args.actions, args.env_kwargs)
     policy, trained = loaded.policy, loaded.trained_on
     env_kwargs = {**loaded.env_kwargs, **args.env_kwargs}  # the user's win over the model's
     args.env = loaded.env_id
