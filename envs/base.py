@@ -289,6 +289,21 @@ class PourGymEnv(gym.Env, EzPickle):
             name, "seen", lambda: perceived_asset(self.asset(name), self.scan_seed)
         )
 
+    def perceive_all(self, names) -> None:
+        """With ``perception="scan"``, perceive every container of ``names`` now.
+
+        So that one the pipeline cannot take is refused here, not at some reset in the
+        middle of a run. The first time takes 10-30 s a container: a bar shows it (after 2
+        s, so that perceptions read from the cache show nothing).
+        """
+        if self.perception == "true":
+            return
+        from tqdm.auto import tqdm
+
+        names = list(dict.fromkeys(names))
+        for name in tqdm(names, desc="perceiving containers", unit="container", delay=2.0):
+            self.seen(name)
+
     def _load(self, name: str) -> tuple[LabelledAsset, SignedDistanceField]:
         """The asset and its signed-distance field (computed once, then from the disk cache)."""
         asset = self.asset(name)

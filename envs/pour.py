@@ -21,26 +21,26 @@ from pour_gym.envs.pour_observation import (
 from pour_gym.envs.rules import (
     amount_option,
     amount_terms,
+    check_motion,
     episode_amounts,
     episode_end,
     lip_goal,
+    next_tilt,
     pour_counts,
     shaping_potentials,
-    tilt_goal,
     tolerance,
 )
 from pour_gym.envs.task import POUR
 from pour_gym.errors import InputError
+from pour_gym.features import held_by_tilt
 from pour_gym.fluid.liquid import Liquid
 from pour_gym.fluid.pbf import PBFConfig
 from pour_gym.sim import Camera, Container
 from pour_gym.sim.rotations import about_z
 from pour_gym.sim.sensors import Sensor, SensorConfig
 
-TILT_CONTROLS = ("rate", "angle")
 # T's range at 5 mm, particles of 0.125 ml (scaled to the same volumes at another spacing).
 AMOUNT_RANGE = (100, 300)
-LIP_CONTROLS = ("velocity", "target")
 
 
 class PourEnv(PourGymEnv):
@@ -61,15 +61,17 @@ class PourEnv(PourGymEnv):
     tilt stays within [0, ``max_tilt``] degrees; the lip stays in a box over the table and
     high enough that the source clears the target's rim. With ``tilt_control="angle"`` the
     fourth action is the tilt to go to instead, from -``UPRIGHT_BAND`` (20 deg; upright
-    below 0) at -1 to ``max_tilt`` at 1, reached at no more than ``max_tilt_rate``: the
-    same motions, in a form where exploring actions reach every tilt (a learner's
-    Gaussian noise on a rate seldom adds up to the 60-90 deg at which a small fill
-    pours). With ``lip_control="target"`` the first three actions name where the lip goes
-    instead, in the target's terms, reached at no more than ``max_speed`` along each axis:
-    along x and y the target's rim centre plus the action times 2 target rim radii
-    (``LIP_REACH``), up from the lowest allowed height (-1) to 10 cm above it (1). The
-    same motions again, in a form where one action means the same place over every
-    target (a velocity must be steered by a gain that depends on the target's size).
+    below 0) at -1 to ``max_tilt`` at 1, reached at no more than ``max_tilt_rate``: exploring
+    actions reach every tilt (Gaussian noise on a rate seldom adds up to the 60-90 deg at
+    which a small fill pours). With ``"onset"``, the tilt to go to from the source's onset
+    (the tilt at which its fluid now reaches its mouth, quasi-static): upright at -1, the
+    onset at 0, ``ONSET_REACH`` (30 deg) beyond it at 1, the same stage of a pour from any
+    source at any fill. With ``lip_control="target"`` the first three actions name where
+    the lip goes instead, in the target's terms, reached at no more than ``max_speed``
+    along each axis: along x and y the target's rim centre plus the action times 2 target
+    rim radii (``LIP_REACH``), up from the lowest allowed height (-1) to 10 cm above it
+    (1). The same motions again, in a form where one action means the same place over
+    every target (a velocity must be steered by a gain that depends on the target's size).
 
     ## Observation Space
     ``obs_mode="features"`` (default): ``Box(-10, 10, (16,), float32)``, see
@@ -149,7 +151,7 @@ class PourEnv(PourGymEnv):
     | ``max_speed`` | float | 0.15 | lip speed at action 1, m/s |
     | ``max_tilt_rate`` | float | 60.0 | tilt rate at action 1, deg/s |
     | ``max_tilt`` | float | 135.0 | largest tilt, deg |
-    | ``tilt_control`` | str | ``"rate"`` | the tilt action: ``"rate"`` or ``"angle"`` |
+    | ``tilt_control`` | str | ``"rate"`` | the tilt action: ``"rate"``, ``"angle"``, ``"onset"`` |
     | ``lip_control`` | str | ``"velocity"`` | the lip action: ``"velocity"`` or ``"target"`` |
     | ``pour_threshold`` | int | 5 | particles out of the source that make a pour |
     | ``pour_steps`` | int | 3 | steps in a row they must stay out |
@@ -194,6 +196,7 @@ class PourEnv(PourGymEnv):
       ``spacing`` added (the fluid's particle spacing, 2.5-7 mm; None keeps 5 mm, bit
       for bit; T's default range and the fill's margin keep their millilitres).
       ``observe_flow`` added (off by default: the observation as it was).
+      ``tilt_control="onset"`` added (the tilt named from the source's onset).
     * v2: Pour-v1 with ``max_tilt_rate=20`` (v1: 60 deg/s; 2 deg a step). A learner over
       the procedural family pours in a flick at 60 deg/s (the target amount out in about
       0.6 s, where the scripted expert pours for 4 s) and stops too late or too early;
@@ -329,27 +332,10 @@ class PourEnv(PourGymEnv):
                 f"pour_threshold and pour_steps must be at least 1, not {pour_threshold}, "
                 f"{pour_steps}"
             )
-        for name, value in (("max_speed", max_speed), ("max_tilt_rate", max_tilt_rate)):
-            if not value > 0:
-                raise InputError(f"{name} must be positive, not {value}")
-        if not 0 < max_tilt <= 180:
-            raise InputError(f"max_tilt must be in (0, 180] degrees, not {max_tilt}")
-        if tilt_control not in TILT_CONTROLS:
-            raise InputError(f"tilt_control must be one of {TILT_CONTROLS}, not {tilt_control!r}")
-        if lip_control not in LIP_CONTROLS:
-            raise InputError(f"lip_control must be one of {LIP_CONTROLS}, not {lip_control!r}")
+        check_motion(max_speed, max_tilt_rate, max_tilt, tilt_control, lip_control)
         self.sources = self._containers(source_objects if source_objects is not None else objects)
         self.targets = self._containers(target_objects if target_objects is not None else objects)
-        if perception == "scan":
-            # Every container perceived now (cached after the first time), so that one the
-            # pipeline cannot take is refused here, not at some reset in the middle of a run.
-            # The first time takes 10-30 s a container: a bar shows it (after 2 s, so that
-            # perceptions read from the cache show nothing).
-            from tqdm.auto import tqdm
-
-            names = list(dict.fromkeys(self.sources + self.targets))
-            for name in tqdm(names, desc="perceiving containers", unit="container", delay=2.0):
-                self.seen(name)
+        self.perceive_all(self.sources + self.targets)
         self.source_particles = None if source_particles is None else int(source_particles)
         self.amount_range = (int(lo), int(hi))
         self.max_speed = float(max_speed)
@@ -418,6 +404,7 @@ class PourEnv(PourGymEnv):
         )  # fmt: skip
         self.tolerance = tolerance(self.target_amount)
         self.world.fill(self.source, particles=self.fill)
+        self._held = self._held_by_tilt(source) if self.tilt_control == "onset" else None
         # The camera looks across the way from the source to the target.
         mid = 0.5 * (self.lip + self.target_pos)
         self.camera = Camera(
@@ -496,15 +483,25 @@ class PourEnv(PourGymEnv):
                 lip_goal(a[:3], centre, gt.rim_radius, self.z_min) - self.lip, -reach, reach
             )
         lip = np.clip(self.lip + move, lo, hi)
-        most = self.max_tilt_rate * self.dt
-        if self.tilt_control == "rate":
-            tilt = self.tilt + a[3] * most
-        else:
-            goal = tilt_goal(a[3], self.max_tilt)
-            tilt = self.tilt + np.clip(goal - self.tilt, -most, most)
-        return lip, float(np.clip(tilt, 0.0, self.max_tilt))
+        tilt = next_tilt(
+            self.tilt_control, a[3], self.tilt, self.max_tilt_rate * self.dt, self.max_tilt,
+            self._held, self._counts["in_source"],
+        )  # fmt: skip
+        return lip, tilt
 
     # ------------------------------------------------------------------ helpers
+    def _held_by_tilt(self, name: str) -> np.ndarray:
+        """What the source holds at rest at each whole degree of tilt, particles (kept).
+
+        From the source as the policy knows it (its features' geometry), held as it is.
+        """
+        seen = self.seen(name).geometry
+        kind = f"held {self.holder.name} {self.max_tilt}"  # the envs of a vector env share
+        held = self._store.get(
+            name, kind, lambda: held_by_tilt(seen, self.frame.rotation, self.max_tilt)
+        )
+        return held / self.world.particle_volume
+
     def _count_now(self) -> dict:
         """The step's counts (:func:`~pour_gym.envs.rules.pour_counts`)."""
         census = self.world.census()

@@ -30,9 +30,14 @@ FILL_MARGIN = 100
 AIM_OFFSET = 0.5
 # The source counts as upright below this tilt (deg).
 UPRIGHT_DEG = 3.0
+# The forms of the tilt action (the fourth) and of the lip action (the first three).
+TILT_CONTROLS = ("rate", "angle", "onset")
+LIP_CONTROLS = ("velocity", "target")
 # tilt_control="angle": the action's tilt range reaches this far below upright (deg), so a
 # band of actions, not one value, sets the source upright.
 UPRIGHT_BAND = 20.0
+# tilt_control="onset": how far beyond the source's onset tilt action 1 names (deg).
+ONSET_REACH = 30.0
 
 # lip_control="target": the lip's goal reaches this many target rim radii from the target's
 # rim centre along x and y, and rises this high above the lowest allowed lip height (m).
@@ -261,6 +266,26 @@ def outcome(info: Mapping) -> str:
     return "unfinished"
 
 
+def check_motion(
+    max_speed: float, max_tilt_rate: float, max_tilt: float, tilt_control: str, lip_control: str
+) -> None:
+    """Check the source's motion arguments (see ``PourEnv``).
+
+    Raises:
+        InputError: a speed or rate not above 0, a largest tilt outside (0, 180] deg, or an
+            unknown form of the tilt or lip action (named, with the forms there are).
+    """
+    for name, value in (("max_speed", max_speed), ("max_tilt_rate", max_tilt_rate)):
+        if not value > 0:
+            raise InputError(f"{name} must be positive, not {value}")
+    if not 0 < max_tilt <= 180:
+        raise InputError(f"max_tilt must be in (0, 180] degrees, not {max_tilt}")
+    if tilt_control not in TILT_CONTROLS:
+        raise InputError(f"tilt_control must be one of {TILT_CONTROLS}, not {tilt_control!r}")
+    if lip_control not in LIP_CONTROLS:
+        raise InputError(f"lip_control must be one of {LIP_CONTROLS}, not {lip_control!r}")
+
+
 def tilt_goal(action: float, max_tilt: float) -> float:
     """The tilt (deg) an angle action in [-1, 1] names: -``UPRIGHT_BAND`` to ``max_tilt``."""
     return -UPRIGHT_BAND + 0.5 * (action + 1.0) * (max_tilt + UPRIGHT_BAND)
@@ -269,6 +294,67 @@ def tilt_goal(action: float, max_tilt: float) -> float:
 def tilt_action(goal: float, max_tilt: float) -> float:
     """The angle action naming a tilt (deg): :func:`tilt_goal`'s inverse, not clipped."""
     return 2.0 * (goal + UPRIGHT_BAND) / (max_tilt + UPRIGHT_BAND) - 1.0
+
+
+def onset_tilt(held: np.ndarray, fill: float) -> float:
+    """The tilt (deg) at which a fill reaches the source's mouth: where it starts to pour.
+
+    Quasi-static: the tilt at which what the source holds at rest falls to the fill
+    (interpolated between whole degrees); 0 for a fill above what it holds upright, the
+    last tilt of ``held`` for one it holds at every tilt.
+
+    Args:
+        held: what the source holds at rest at tilts 0, 1, 2, ... deg, particles
+            (:func:`pour_gym.features.mouth_volume` over the particle volume).
+        fill: the fluid in the source, particles.
+    """
+    # Never more at a larger tilt: the voxelised cavity can add a voxel here and there.
+    held = np.minimum.accumulate(np.asarray(held, dtype=np.float64))
+    tilts = np.arange(len(held), dtype=np.float64)
+    return float(np.interp(fill, held[::-1], tilts[::-1]))
+
+
+def next_tilt(
+    control: str, action: float, tilt: float, most: float, max_tilt: float,
+    held: np.ndarray | None = None, fill: float = 0.0,
+) -> float:  # fmt: skip
+    """Where a tilt action takes the source's tilt (deg) in one step.
+
+    Args:
+        control: the env's ``tilt_control``: ``"rate"`` (the action times ``most``),
+            ``"angle"`` (towards :func:`tilt_goal`) or ``"onset"`` (towards
+            :func:`onset_goal`, the onset from ``held`` and ``fill``).
+        action: the tilt action, in [-1, 1].
+        tilt: the tilt now, deg.
+        most: the largest change in one step, deg.
+        max_tilt: the largest tilt, deg.
+        held: ``"onset"``: what the source holds by tilt (:func:`onset_tilt`), particles.
+        fill: ``"onset"``: the fluid in the source, particles.
+
+    Returns:
+        The tilt, within [0, ``max_tilt``].
+    """
+    if control == "rate":
+        tilt = tilt + action * most
+    else:
+        if control == "angle":
+            goal = tilt_goal(action, max_tilt)
+        else:
+            goal = onset_goal(action, onset_tilt(held, fill), max_tilt)
+        tilt = tilt + np.clip(goal - tilt, -most, most)
+    return float(np.clip(tilt, 0.0, max_tilt))
+
+
+def onset_goal(action: float, onset: float, max_tilt: float) -> float:
+    """The tilt (deg) a ``tilt_control="onset"`` action in [-1, 1] names.
+
+    From -1 to 0 the tilt runs from -``UPRIGHT_BAND`` to ``onset`` (nothing pours), from 0
+    to 1 from ``onset`` to ``ONSET_REACH`` beyond it (at most ``max_tilt``): one action
+    means the same stage of a pour from every source and fill.
+    """
+    if action <= 0.0:
+        return -UPRIGHT_BAND + (action + 1.0) * (onset + UPRIGHT_BAND)
+    return min(onset + action * ONSET_REACH, max_tilt)
 
 
 def lip_goal(

@@ -40,6 +40,8 @@ from pour_gym.mesh.measure import Cavity, cavity
 from pour_gym.parts import Part
 
 if TYPE_CHECKING:
+    from collections.abc import Callable
+
     import trimesh
 
 
@@ -341,6 +343,57 @@ def mouth_volume(
     # Voxel centres below the lowest mouth voxel's top (its centre half a voxel up).
     lip = float(mouth.min()) + 0.5 * cav.voxel * float(np.abs(up).sum())
     return float(np.count_nonzero(height < lip)) * cav.voxel**3
+
+
+def held_by_tilt(
+    geometry: ContainerGeometry, rotation: Callable[[float], np.ndarray], max_tilt: float
+) -> np.ndarray:
+    """:func:`mouth_volume` at each whole degree of tilt from 0 to ``max_tilt``, m^3.
+
+    A tilt about a horizontal axis moves a point's height as cos(tilt) times its height
+    upright plus sin(tilt) times its height at 90 deg, so the cavity's voxels are binned
+    once by those two (a quarter voxel a bin, at its points' mean) and each
+    tilt counts bins: milliseconds a tilt where :func:`mouth_volume` takes a pass over
+    the millions of voxels of a large cavity.
+
+    Args:
+        geometry: the container's geometry.
+        rotation: the container's rotation (3, 3) at a tilt in degrees about a horizontal
+            axis (e.g. a held source's ``SourceFrame.rotation``).
+        max_tilt: the largest tilt, deg.
+
+    Returns:
+        (floor(max_tilt) + 1,) volumes, m^3.
+
+    Raises:
+        InputError: ``rotation`` does not tilt about a horizontal axis.
+    """
+    cav = geometry.cavity
+    points = cavity_points(geometry)
+    up0, up90 = np.asarray(rotation(0.0))[2], np.asarray(rotation(90.0))[2]
+    if not np.allclose(np.asarray(rotation(30.0))[2], np.cos(np.pi / 6) * up0 + 0.5 * up90):
+        raise InputError("held_by_tilt needs a rotation that tilts about a horizontal axis")
+    s, t = points @ up0, points @ up90
+    bin_size = 0.25 * cav.voxel
+    i = np.floor((s - s.min()) / bin_size).astype(np.int64)
+    j = np.floor((t - t.min()) / bin_size).astype(np.int64)
+    _, which, counts = np.unique(
+        i * (int(j.max()) + 1) + j, return_inverse=True, return_counts=True
+    )
+    # Each bin at its points' mean (exact where the grid's axes meet the tilt's, as held).
+    bin_s = np.bincount(which, weights=s) / counts
+    bin_t = np.bincount(which, weights=t) / counts
+    # The mouth: the cavity's top layer when upright, as mouth_volume takes it.
+    top = cav.origin[2] + cav.voxel * (np.flatnonzero(cav.mask.any(axis=(0, 1)))[-1])
+    mouth = points[:, 2] >= top - 0.5 * cav.voxel
+    mouth_s, mouth_t = s[mouth], t[mouth]
+    held = []
+    for tilt in np.radians(np.arange(int(np.floor(max_tilt)) + 1)):
+        c, n = np.cos(tilt), np.sin(tilt)
+        up = c * up0 + n * up90
+        lip = float((c * mouth_s + n * mouth_t).min()) + 0.5 * cav.voxel * float(np.abs(up).sum())
+        held.append(counts[c * bin_s + n * bin_t < lip].sum())
+    return np.asarray(held, dtype=np.float64) * cav.voxel**3
 
 
 def held_volume(

@@ -459,6 +459,19 @@ def test_closed_loop_poc_pours_twenty_particles():
         run_poc(policy="open")
 
 
+def test_the_scripted_policy_acts_in_the_action_form_the_env_is_made_with():
+    """`pour-gym evaluate scripted --env-kwargs ...`: the env's arguments, not the id's alone
+    (a slower tilt, another tilt form), or a clear refusal."""
+    from pour_gym.agents.evaluation.evaluate import load_policy
+
+    slow = load_policy("scripted", "PourGym/Pour-v1", env_kwargs={"max_tilt_rate": 20.0}).policy
+    assert (slow.tilt_control, slow.max_tilt_rate) == ("angle", 20.0)
+    by_rate = load_policy("scripted", "PourGym/Pour-v1", env_kwargs={"tilt_control": "rate"})
+    assert by_rate.policy.tilt_control == "rate"
+    with pytest.raises(InputError, match="onset"):
+        load_policy("scripted", "PourGym/Pour-v2", env_kwargs={"tilt_control": "onset"})
+
+
 def test_a_sampling_policy_is_the_same_for_the_same_seed_and_leaves_torch_alone():
     """--stochastic-eval: a PPO model's sampled actions, seeded per episode; the same
     seed gives the same episode, another seed another one, and torch's global generator

@@ -18,7 +18,7 @@ from stable_baselines3.common.env_checker import check_env as sb3_check_env
 from pour_gym.agents.policies.rollout import rollout
 from pour_gym.agents.policies.scripted import ScriptedPourPolicy, action_settings
 from pour_gym.envs import ENV_IDS, ENVS, POUR, POUR_V0, POUR_V1, POUR_V2, entry, task_of
-from pour_gym.envs.rules import lip_action, lip_goal
+from pour_gym.envs.rules import lip_action, lip_goal, onset_tilt
 from pour_gym.features import fluid_features, relative_distance_height
 from pour_gym.objects import cylinder_cup
 
@@ -205,6 +205,32 @@ def test_angle_tilt_control_goes_to_the_commanded_tilt_at_the_rate_limit(make_en
     env.close()
     with pytest.raises(ValueError, match="tilt_control"):
         make_env(POUR_V0, objects="red_cup", tilt_control="torque")
+
+
+def test_onset_tilt_control_holds_the_fluid_at_the_brink_and_pours_beyond_it(make_env):
+    """tilt_control="onset": action 0 goes to the fill's onset and nothing runs out there;
+    a little beyond, the source pours and the onset climbs as it empties; -1 is upright."""
+    env = make_env(POUR_V0, objects="red_cup", tilt_control="onset", max_tilt_rate=20.0)
+    _, info = env.reset(seed=0)
+    u = env.unwrapped
+    onset = onset_tilt(u._held, info["in_source"])
+    assert 30.0 < onset < 110.0
+    for _ in range(50):  # 2 deg a step: there within 50 steps, then held
+        _, _, _, _, info = env.step(np.zeros(4, np.float32))
+    assert info["tilt_deg"] == pytest.approx(onset) and info["in_source"] == info["fill"]
+    for _ in range(6):  # towards 9 deg beyond the onset
+        _, _, _, _, info = env.step(np.array([0, 0, 0, 0.3], np.float32))
+    out = info["fill"] - info["in_source"]
+    assert out >= 5 and info["in_source"] > 0
+    assert onset_tilt(u._held, info["in_source"]) > onset
+    for _ in range(80):
+        _, _, terminated, _, info = env.step(np.array([0, 0, 0, -1], np.float32))
+        if terminated:
+            break
+    assert terminated and info["tilt_deg"] < 3.0
+    # The scripted expert reads the features, which do not give the onset: it says so.
+    with pytest.raises(ValueError, match="cannot name a tilt from the source's onset"):
+        ScriptedPourPolicy(**action_settings(POUR_V0, {"tilt_control": "onset"}))
 
 
 def test_target_lip_control_goes_to_the_named_place_at_the_speed_limit(make_env):

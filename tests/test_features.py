@@ -9,6 +9,7 @@ from pour_gym.features import (
     count_volume,
     density_volume,
     fluid_features,
+    held_by_tilt,
     inside_container,
     lip_point,
     relative_distance_height,
@@ -114,3 +115,43 @@ def test_a_sill_raises_the_held_volume_by_the_free_surface_times_its_height(red)
     added = held_volume(g, rot, pts, sill=0.005) - held_volume(g, rot, pts)
     assert added == pytest.approx(area * 0.005, rel=0.15)
     assert held_volume(g, rot, pts, sill=0.0) == held_volume(g, rot, pts)
+
+
+def test_what_a_source_holds_by_tilt_is_its_mouth_volume_at_each_degree(red):
+    """Binned once, counted per tilt: the voxels below the mouth as mouth_volume counts them
+    (exactly for a tilt about a grid axis, within a voxel's rounding about another)."""
+    from pour_gym.envs.holders import SourceFrame
+    from pour_gym.features import cavity_points, mouth_volume
+    from pour_gym.sim.rotations import about_z
+
+    _, g = red
+    pts = cavity_points(g)
+    for turn, rel in ((np.pi, 1e-12), (0.7, 2e-3)):
+        frame = SourceFrame(about_z(turn), np.zeros(3))
+        held = held_by_tilt(g, frame.rotation, 135.0)
+        assert held.shape == (136,) and np.all(np.diff(held) <= 0.01 * held[0])
+        for tilt in (0, 17, 33, 60, 73, 100):
+            exact = mouth_volume(g, frame.rotation(float(tilt)), pts)
+            assert held[tilt] == pytest.approx(exact, rel=rel, abs=1e-9), tilt
+
+
+def test_a_cylinder_holds_what_tan_theta_says_when_tilted(tmp_path):
+    """A straight cylinder of radius R and depth H holds pi R^2 (H - R tan(theta)) while the
+    water covers its bottom: the onset of a fill h is tan(theta) = (H - h) / R."""
+    from pour_gym.assets.containers import resolve_asset
+    from pour_gym.envs.holders import SourceFrame
+    from pour_gym.envs.rules import onset_tilt
+    from pour_gym.objects import cylinder_cup
+    from pour_gym.sim.rotations import about_z
+
+    radius, height, base = 0.03, 0.1, 0.006
+    # The cylinder of TiltPour-v0's onset test, labelled once for both (cached by content).
+    path = tmp_path / "cylinder.stl"
+    cylinder_cup(radius, height, 0.004, base).export(path)
+    g = resolve_asset(path).geometry
+    held = held_by_tilt(g, SourceFrame(about_z(np.pi), np.zeros(3)).rotation, 135.0)
+    depth = height - base
+    for fill in (0.5, 0.6, 0.7, 0.8):
+        volume = np.pi * radius**2 * depth * fill
+        analytic = np.degrees(np.arctan(depth * (1.0 - fill) / radius))
+        assert onset_tilt(held, volume) == pytest.approx(analytic, abs=1.5), fill

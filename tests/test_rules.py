@@ -5,12 +5,16 @@ import pytest
 
 from pour_gym.envs.rules import (
     FILL_MARGIN,
+    ONSET_REACH,
     POUR_OUTCOMES,
     RESTING_SPEED,
     UPRIGHT_BAND,
     amount_terms,
     episode_amounts,
     episode_end,
+    next_tilt,
+    onset_goal,
+    onset_tilt,
     outcome,
     pour_counts,
     succeeded,
@@ -70,6 +74,36 @@ def test_the_tilt_encoding_and_its_inverse():
     assert tilt_goal(0.0, 135.0) == pytest.approx(57.5)  # a zero action holds 57.5 deg
     for a in np.linspace(-1.0, 1.0, 21):
         assert tilt_action(tilt_goal(a, 135.0), 135.0) == pytest.approx(a, abs=1e-12)
+
+
+def test_the_onset_is_where_what_the_source_holds_falls_to_its_fill():
+    held = np.array([400.0, 380.0, 300.0, 301.0, 100.0, 0.0])  # 301: a voxel's noise
+    assert onset_tilt(held, 340.0) == pytest.approx(1.5)  # halfway from 380 to 300
+    assert onset_tilt(held, 300.0) == pytest.approx(2.0)
+    assert onset_tilt(held, 200.0) == pytest.approx(3.5)  # 3 holds 300 as 2 does, not 301
+    assert onset_tilt(held, 500.0) == 0.0  # more than it holds upright: pours at once
+    assert onset_tilt(held, 0.0) == 5.0  # held at every tilt: the last
+
+
+def test_an_onset_action_names_upright_the_onset_and_beyond():
+    assert onset_goal(-1.0, 70.0, 135.0) == -UPRIGHT_BAND
+    assert onset_goal(0.0, 70.0, 135.0) == 70.0
+    assert onset_goal(-0.5, 70.0, 135.0) == pytest.approx(25.0)
+    assert onset_goal(1.0, 70.0, 135.0) == 70.0 + ONSET_REACH
+    assert onset_goal(1.0, 120.0, 135.0) == 135.0  # never past the largest tilt
+    held = np.linspace(1000.0, 0.0, 136)  # 1000 particles upright, none at 135 deg
+    # From 30 deg, at most 2 deg a step, towards the onset of 500 particles (67.5 deg).
+    assert next_tilt("onset", 0.0, 30.0, 2.0, 135.0, held, 500.0) == 32.0
+    assert next_tilt("onset", 0.0, 67.0, 2.0, 135.0, held, 500.0) == pytest.approx(67.5)
+    assert next_tilt("onset", -1.0, 1.0, 2.0, 135.0, held, 500.0) == 0.0
+
+
+def test_the_rate_and_angle_actions_move_the_tilt_as_they_did():
+    for a, tilt in ((0.3, 10.0), (-1.0, 1.0), (1.0, 134.0)):
+        assert next_tilt("rate", a, tilt, 6.0, 135.0) == float(np.clip(tilt + a * 6.0, 0, 135))
+        goal = tilt_goal(a, 135.0)
+        step = tilt + np.clip(goal - tilt, -6.0, 6.0)
+        assert next_tilt("angle", a, tilt, 6.0, 135.0) == float(np.clip(step, 0, 135))
 
 
 def test_the_episode_amounts_fit_both_containers():

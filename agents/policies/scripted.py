@@ -17,10 +17,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pour_gym.envs.pour import FEATURE_NAMES, LIP_CONTROLS, TILT_CONTROLS
-from pour_gym.envs.rules import lip_action, tilt_action
+from pour_gym.envs.pour import FEATURE_NAMES
+from pour_gym.envs.rules import LIP_CONTROLS, lip_action, tilt_action
+from pour_gym.errors import InputError
 
 _I = {name: k for k, name in enumerate(FEATURE_NAMES)}
+# The env's tilt forms the policy acts in: tilt_control="onset" names tilts from the
+# source's onset, which the features do not give it.
+TILT_FORMS = ("rate", "angle")
 # The policy's settings of the env's action form: its field -> the env's argument.
 ACTION_SETTINGS = {
     "tilt_control": "tilt_control",
@@ -121,14 +125,15 @@ class ScriptedPourPolicy:
     tuned_tilt_rate: float = 60.0
 
     def __post_init__(self) -> None:
-        if self.tilt_control not in TILT_CONTROLS:
-            raise ValueError(
-                f"tilt_control must be one of {TILT_CONTROLS}, not {self.tilt_control!r}"
+        if self.tilt_control not in TILT_FORMS:
+            raise InputError(
+                f"the scripted policy acts with tilt_control {' or '.join(TILT_FORMS)}, not "
+                f"{self.tilt_control!r} (it cannot name a tilt from the source's onset)"
             )
         if self.lip_control not in LIP_CONTROLS:
-            raise ValueError(f"lip_control must be one of {LIP_CONTROLS}, not {self.lip_control!r}")
+            raise InputError(f"lip_control must be one of {LIP_CONTROLS}, not {self.lip_control!r}")
         if not self.max_tilt_rate > 0 or not self.tuned_tilt_rate > 0:
-            raise ValueError(
+            raise InputError(
                 "max_tilt_rate and tuned_tilt_rate must be > 0 deg/s, not "
                 f"{self.max_tilt_rate} and {self.tuned_tilt_rate}"
             )
