@@ -338,11 +338,26 @@ def mouth_volume(
     pts = cavity_points(geometry) if points is None else points
     up = np.asarray(rotation)[2]
     height = pts @ up
-    top = cav.origin[2] + cav.voxel * (np.flatnonzero(cav.mask.any(axis=(0, 1)))[-1])
-    mouth = height[pts[:, 2] >= top - 0.5 * cav.voxel]
-    # Voxel centres below the lowest mouth voxel's top (its centre half a voxel up).
-    lip = float(mouth.min()) + 0.5 * cav.voxel * float(np.abs(up).sum())
+    lip = _mouth_level(height[_mouth(geometry, pts)], up, cav.voxel)
     return float(np.count_nonzero(height < lip)) * cav.voxel**3
+
+
+def _mouth(geometry: ContainerGeometry, points: np.ndarray) -> np.ndarray:
+    """Which cavity voxel centres (:func:`cavity_points`) are its mouth: its top layer."""
+    cav = geometry.cavity
+    top = cav.origin[2] + cav.voxel * (np.flatnonzero(cav.mask.any(axis=(0, 1)))[-1])
+    return points[:, 2] >= top - 0.5 * cav.voxel
+
+
+def _mouth_level(mouth_heights: np.ndarray, up: np.ndarray, voxel: float) -> float:
+    """The level water stands at before it runs out: the lowest mouth voxel's top, m.
+
+    Args:
+        mouth_heights: the mouth voxel centres' heights (along ``up``), m.
+        up: the world's up in the container's frame.
+        voxel: the voxel size, m (a centre is half a voxel below the voxel's top).
+    """
+    return float(mouth_heights.min()) + 0.5 * voxel * float(np.abs(up).sum())
 
 
 def held_by_tilt(
@@ -383,15 +398,13 @@ def held_by_tilt(
     # Each bin at its points' mean (exact where the grid's axes meet the tilt's, as held).
     bin_s = np.bincount(which, weights=s) / counts
     bin_t = np.bincount(which, weights=t) / counts
-    # The mouth: the cavity's top layer when upright, as mouth_volume takes it.
-    top = cav.origin[2] + cav.voxel * (np.flatnonzero(cav.mask.any(axis=(0, 1)))[-1])
-    mouth = points[:, 2] >= top - 0.5 * cav.voxel
+    mouth = _mouth(geometry, points)
     mouth_s, mouth_t = s[mouth], t[mouth]
     held = []
     for tilt in np.radians(np.arange(int(np.floor(max_tilt)) + 1)):
         c, n = np.cos(tilt), np.sin(tilt)
         up = c * up0 + n * up90
-        lip = float((c * mouth_s + n * mouth_t).min()) + 0.5 * cav.voxel * float(np.abs(up).sum())
+        lip = _mouth_level(c * mouth_s + n * mouth_t, up, cav.voxel)
         held.append(counts[c * bin_s + n * bin_t < lip].sum())
     return np.asarray(held, dtype=np.float64) * cav.voxel**3
 
