@@ -702,33 +702,63 @@ def test_an_env_schedule_sets_the_tilt_rate_of_every_training_env_by_step(vec):
     SubprocVecEnv's workers before each rollout; bad schedules refused by name."""
     from stable_baselines3 import PPO
 
-    from pour_gym.agents.training.env_schedule import EnvSchedule, env_schedule_callback
+    from pour_gym.agents.training.schedule import StepSchedule, schedule_callback
     from pour_gym.agents.training.vector import training_vec_env
 
-    schedule = EnvSchedule.from_recipe({"max_tilt_rate": [[0, 60], [128, 20]]})
-    assert [schedule.value(s) for s in (0, 127, 128, 10**7)] == [60.0, 60.0, 20.0, 20.0]
-    assert EnvSchedule.from_recipe({"max_tilt_rate": [[100, 30]]}).value(99) is None
+    schedule = StepSchedule.from_recipe("env_schedule", {"max_tilt_rate": [[0, 60], [128, 20]]})
+    assert [schedule.point(s)[1] for s in (0, 127, 128, 10**7)] == [60.0, 60.0, 20.0, 20.0]
+    late = StepSchedule.from_recipe("env_schedule", {"max_tilt_rate": [[100, 30]]})
+    assert late.point(99) is None
     assert schedule.to_dict() == {"max_tilt_rate": [[0, 60.0], [128, 20.0]]}
     for bad in ({"max_speed": [[0, 1]]}, {"max_tilt_rate": [[0, -1]]}, {"max_tilt_rate": 60},
                 {"max_tilt_rate": [[5, 1], [5, 2]]}, {"max_tilt_rate": []},
-                {"max_tilt_rate": [[0, 60]], "max_speed": [[0, 1]]}):  # fmt: skip
+                {"max_tilt_rate": [[0, 60]], "max_speed": [[0, 1]]}, {"max_tilt_rate": [[0, None]]},
+                {"target_kl": [[0, None]]}):  # fmt: skip
         with pytest.raises(InputError, match="env_schedule"):
-            EnvSchedule.from_recipe(bad)
+            StepSchedule.from_recipe("env_schedule", bad)
     kwargs = {"objects": "red_cup", "amount_range": (40, 80), "max_episode_steps": 16}
     venv = training_vec_env("PourGym/Pour-v2", 2, 3, kwargs, None, vec)
     try:
         assert venv.get_attr("max_tilt_rate") == [20.0, 20.0]  # Pour-v2's own
         model = PPO("MlpPolicy", venv, n_steps=64, batch_size=64, n_epochs=1, seed=0,
                     device="cpu")  # fmt: skip
-        model.learn(128, callback=env_schedule_callback(schedule))  # one rollout of 2 x 64
+        model.learn(128, callback=schedule_callback(schedule))  # one rollout of 2 x 64
         assert venv.get_attr("max_tilt_rate") == [60.0, 60.0]
-        model.learn(128, callback=env_schedule_callback(schedule), reset_num_timesteps=False)
+        model.learn(128, callback=schedule_callback(schedule), reset_num_timesteps=False)
         assert venv.get_attr("max_tilt_rate") == [20.0, 20.0]
     finally:
         venv.close()
     drop = training_vec_env("PourGym/TiltPour-v0", 1, 3, {"objects": "red_cup"}, None, "dummy")
     with pytest.raises(InputError, match="do not have"):
         PPO("MlpPolicy", drop, n_steps=8, batch_size=8, device="cpu").learn(
-            8, callback=env_schedule_callback(schedule)
+            8, callback=schedule_callback(schedule)
         )
     drop.close()
+
+
+def test_an_algo_schedule_sets_ppo_target_kl_by_step_null_running_every_epoch():
+    """algo_schedule {target_kl: [[step, value], ...]}: null is a value (every epoch of an
+    update runs), set on the model before each rollout, so the update after it stops early
+    once a target is set; bad schedules and a model without the name refused by name."""
+    from stable_baselines3 import PPO, SAC
+
+    from pour_gym.agents.training.schedule import StepSchedule, schedule_callback
+
+    schedule = StepSchedule.from_recipe("algo_schedule", {"target_kl": [[0, None], [128, 1e-12]]})
+    assert [schedule.point(s) for s in (0, 128)] == [(0, None), (128, 1e-12)]
+    assert schedule.to_dict() == {"target_kl": [[0, None], [128, 1e-12]]}
+    for bad in ({"target_kl": [[0, -0.1]]}, {"max_tilt_rate": [[0, 60]]}, {"target_kl": 0.03}):
+        with pytest.raises(InputError, match="algo_schedule"):
+            StepSchedule.from_recipe("algo_schedule", bad)
+    # The recipe's own target_kl (0.03) is what the schedule replaces from its first step.
+    model = PPO("MlpPolicy", "Pendulum-v1", n_steps=128, batch_size=32, n_epochs=5,
+                target_kl=0.03, seed=0, device="cpu")  # fmt: skip
+    model.learn(128, callback=schedule_callback(schedule))
+    assert model.target_kl is None and model._n_updates == 5  # no early stop: five epochs
+    model.learn(128, callback=schedule_callback(schedule), reset_num_timesteps=False)
+    # 1e-12: the first epoch stops at its second minibatch (the first, before any step,
+    # has a KL of zero), and no other epoch runs.
+    assert model.target_kl == 1e-12 and model._n_updates == 6
+    sac = SAC("MlpPolicy", "Pendulum-v1", learning_starts=0, seed=0, device="cpu")
+    with pytest.raises(InputError, match="SAC does not have"):
+        sac.learn(4, callback=schedule_callback(schedule))

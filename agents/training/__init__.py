@@ -8,9 +8,9 @@
   normaliser (:func:`load_run`), checkpoints, the models that ship with pour-gym.
 - :mod:`~pour_gym.agents.training.curves`: learning curves and the run's callbacks.
 - :mod:`~pour_gym.agents.training.warm_start`: a warm start from the expert's demonstrations.
-- :mod:`~pour_gym.agents.training.curriculum`, :mod:`~pour_gym.agents.training.env_schedule`,
+- :mod:`~pour_gym.agents.training.curriculum`, :mod:`~pour_gym.agents.training.schedule`,
   :mod:`~pour_gym.agents.training.noise`: what a recipe may change over a run (how
-  episodes start, an env argument by step, the action noise).
+  episodes start, an env or algorithm argument by step, the action noise).
 - :mod:`~pour_gym.agents.training.loop`: :func:`train`.
 
 Running the same command again resumes from the newest checkpoint until the requested

@@ -16,7 +16,6 @@ from pour_gym.agents.training.curves import (
     record_curve_from_checkpoints,
     training_callbacks,
 )
-from pour_gym.agents.training.env_schedule import env_schedule_callback
 from pour_gym.agents.training.moved_modules import importable_old_paths
 from pour_gym.agents.training.noise import noise_callback
 from pour_gym.agents.training.recipes import Recipe, algorithm_arguments, load_recipe
@@ -27,6 +26,7 @@ from pour_gym.agents.training.runs import (
     load_run,
     save_normaliser,
 )
+from pour_gym.agents.training.schedule import schedule_callback
 from pour_gym.agents.training.vector import training_vec_env
 from pour_gym.agents.training.warm_start import start_from_demonstrations
 from pour_gym.assets import expand_containers
@@ -129,6 +129,7 @@ def train(config: TrainConfig) -> dict:
             dataclasses.asdict(recipe.noise_schedule) if recipe.noise_schedule else None
         ),
         "env_schedule": recipe.env_schedule.to_dict() if recipe.env_schedule else None,
+        "algo_schedule": recipe.algo_schedule.to_dict() if recipe.algo_schedule else None,
         # What the environments were made with (recipe and run): evaluate uses it.
         "env_kwargs": arguments,
     }
@@ -189,8 +190,9 @@ def train(config: TrainConfig) -> dict:
                                        env_kwargs)  # fmt: skip
         if recipe.noise_schedule is not None:
             callbacks.callbacks.append(noise_callback(recipe.noise_schedule, config.timesteps))
-        if recipe.env_schedule is not None:
-            callbacks.callbacks.append(env_schedule_callback(recipe.env_schedule))
+        for schedule in (recipe.env_schedule, recipe.algo_schedule):
+            if schedule is not None:
+                callbacks.callbacks.append(schedule_callback(schedule))
         model.learn(remaining, callback=callbacks, reset_num_timesteps=checkpoint is None)
         # The finished run is a checkpoint too: running the command again only evaluates.
         model.save(ckpt_dir / f"model_{model.num_timesteps}_steps.zip")

@@ -22,9 +22,9 @@ from typing import TYPE_CHECKING
 import gymnasium as gym
 import yaml
 
-from pour_gym.agents.training.env_schedule import EnvSchedule
 from pour_gym.agents.training.moved_modules import importable_old_paths
 from pour_gym.agents.training.noise import NoiseSchedule
+from pour_gym.agents.training.schedule import StepSchedule
 from pour_gym.errors import InputError
 
 if TYPE_CHECKING:  # the residual module loads the envs (pybullet): only when a recipe has one
@@ -42,7 +42,8 @@ RECIPE_KEYS = {
     "stochastic_eval": "evaluate and draw the curve with the policy's sampled actions (seeded)",
     "residual": "learn a correction to the scripted expert's actions (see ResidualConfig)",
     "noise_schedule": "shrink the action noise over the run's end (see NoiseSchedule)",
-    "env_schedule": "an env argument changed at step counts: a curriculum (see EnvSchedule)",
+    "env_schedule": "an env argument changed at step counts: a curriculum (see StepSchedule)",
+    "algo_schedule": "an algorithm's argument changed at step counts (see StepSchedule)",
 }
 RESIDUAL_WRAPPER = "pour_gym.agents.policies.residual.ExpertResidual"
 
@@ -98,7 +99,8 @@ class Recipe:
     Attributes:
         hyperparameters: the algorithm's constructor arguments.
         n_envs, policy, normalize, env_kwargs, env_wrapper, torch_threads, demonstrations,
-            stochastic_eval, residual, noise_schedule, env_schedule: the training's own keys
+            stochastic_eval, residual, noise_schedule, env_schedule, algo_schedule: the
+            training's own keys
             (:data:`RECIPE_KEYS`).
     """
 
@@ -113,7 +115,8 @@ class Recipe:
     stochastic_eval: bool = False
     residual: ResidualConfig | None = None
     noise_schedule: NoiseSchedule | None = None
-    env_schedule: EnvSchedule | None = None
+    env_schedule: StepSchedule | None = None
+    algo_schedule: StepSchedule | None = None
 
     def wrapper(self) -> Callable[[gym.Env], gym.Env] | None:
         """A function that wraps an env in :attr:`env_wrapper`'s wrappers (None if none).
@@ -204,7 +207,14 @@ def load_recipe(
             NoiseSchedule.from_recipe(own["noise_schedule"]) if own.get("noise_schedule") else None
         ),
         env_schedule=(
-            EnvSchedule.from_recipe(own["env_schedule"]) if own.get("env_schedule") else None
+            StepSchedule.from_recipe("env_schedule", own["env_schedule"])
+            if own.get("env_schedule")
+            else None
+        ),
+        algo_schedule=(
+            StepSchedule.from_recipe("algo_schedule", own["algo_schedule"])
+            if own.get("algo_schedule")
+            else None
         ),
     )
     if recipe.residual is not None and recipe.demonstrations is not None:
