@@ -742,6 +742,7 @@ def test_an_algo_schedule_sets_ppo_target_kl_by_step_null_running_every_epoch():
     once a target is set; bad schedules and a model without the name refused by name."""
     from stable_baselines3 import PPO, SAC
 
+    from pour_gym.agents.training.recipes import load_recipe
     from pour_gym.agents.training.schedule import StepSchedule, schedule_callback
 
     schedule = StepSchedule.from_recipe("algo_schedule", {"target_kl": [[0, None], [128, 1e-12]]})
@@ -759,6 +760,11 @@ def test_an_algo_schedule_sets_ppo_target_kl_by_step_null_running_every_epoch():
     # 1e-12: the first epoch stops at its second minibatch (the first, before any step,
     # has a KL of zero), and no other epoch runs.
     assert model.target_kl == 1e-12 and model._n_updates == 6
+    # A run's own target_kl beside a schedule that replaces it from step 0 would go unused.
+    with pytest.raises(InputError, match="algo_schedule=null"):
+        load_recipe("PourGym/Pour-v2", "ppo", PPO, {"target_kl": 0.05}, "family-schedule")
+    assert load_recipe("PourGym/Pour-v2", "ppo", PPO, {"target_kl": 0.05, "algo_schedule": None},
+                       "family-schedule").hyperparameters["target_kl"] == 0.05  # fmt: skip
     sac = SAC("MlpPolicy", "Pendulum-v1", learning_starts=0, seed=0, device="cpu")
     with pytest.raises(InputError, match="SAC does not have"):
         sac.learn(4, callback=schedule_callback(schedule))

@@ -13,6 +13,7 @@ from __future__ import annotations
 import functools
 import importlib
 import inspect
+import json
 import re
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -100,8 +101,7 @@ class Recipe:
         hyperparameters: the algorithm's constructor arguments.
         n_envs, policy, normalize, env_kwargs, env_wrapper, torch_threads, demonstrations,
             stochastic_eval, residual, noise_schedule, env_schedule, algo_schedule: the
-            training's own keys
-            (:data:`RECIPE_KEYS`).
+            training's own keys (:data:`RECIPE_KEYS`).
     """
 
     hyperparameters: dict
@@ -217,6 +217,15 @@ def load_recipe(
             else None
         ),
     )
+    scheduled = recipe.algo_schedule
+    if scheduled and scheduled.name in (overrides or {}) and scheduled.points[0][0] == 0:
+        # The schedule sets it before the first rollout: the run's value would go unused.
+        raise InputError(
+            f"--set {scheduled.name} is replaced from the first step by the recipe's "
+            f"algo_schedule {json.dumps(scheduled.to_dict())}: set the schedule instead (--set "
+            f"'algo_schedule={{{scheduled.name}: [[0, VALUE]]}}'), or drop it (--set "
+            "algo_schedule=null)"
+        )
     if recipe.residual is not None and recipe.demonstrations is not None:
         raise InputError("a recipe learns a residual on the expert or starts from its "
                          "demonstrations, not both")  # fmt: skip
