@@ -104,5 +104,5 @@ def test_the_report_gives_each_row_its_aggregates_over_seeds_and_containers(tmp_
     # One run: no seeds to resample, so no interval (not the value twice).
     assert rows["scripted"]["iqm"][1] is None and rows["random"]["improvement"][1] is None
     text = paths["report"].read_text()
-    assert "| RANDOM | - | uniform random (reference) |" in text
+    assert "| RANDOM | - | - | uniform random (reference) |" in text
     assert "normalised return, unseen (IQM)" in text

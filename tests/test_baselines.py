@@ -58,11 +58,11 @@ def test_report_groups_seeds_and_gives_intervals_over_them(tmp_path):
     assert best["seeds"] == [0] and best["trained_success"]["mean"] == pytest.approx(0.6)
     text = paths["report"].read_text()
     assert (
-        "| Pour-v1 | SAC | features | reward | last step | red_cup | catalogue (2) | 3 | 0.80 ["
+        "| Pour-v1 | SAC | - | features | reward | last step | red_cup | catalogue (2) | 3 | 0.80 ["
         in text
     )
     assert (
-        "| PPO | features | reward | best curve point | red_cup | catalogue (2) | 1 | 0.60 |"
+        "| PPO | - | features | reward | best curve point | red_cup | catalogue (2) | 1 | 0.60 |"
         in text
     )
     assert paths["curves"].is_file() and "(b/curves.png)" in text
@@ -71,6 +71,25 @@ def test_report_groups_seeds_and_gives_intervals_over_them(tmp_path):
     assert paths["report"].read_text() == text
     with pytest.raises(InputError, match=r"no finished train\.py run"):
         baselines_report([tmp_path / "sum"], **paths)
+
+
+def test_runs_of_different_recipes_are_rows_apart_and_overrides_are_named(tmp_path):
+    """Two recipes of one algorithm (say ppo/family and ppo/family-schedule) are different
+    ways of training, not seeds of one; a run with ``--set`` is a row of its own too."""
+    for name, recipe, overrides in (("a_s0", "family", {}), ("a_s1", "family", {}),
+                                    ("b_s0", "family-schedule", {}),
+                                    ("c_s0", "family", {"target_kl": 0.05})):  # fmt: skip
+        folder = tmp_path / "runs" / name
+        _run(folder, int(name[-1]), 0.5, algo="ppo")
+        config = json.loads((folder / "config.json").read_text())
+        config.update(recipe=recipe, overrides=overrides)
+        (folder / "config.json").write_text(json.dumps(config))
+    paths = {"summaries": tmp_path / "sum", "report": tmp_path / "b.md",
+             "curves": tmp_path / "b" / "curves.png"}  # fmt: skip
+    doc = baselines_report([tmp_path / "runs"], **paths)
+    seeds = {r["recipe"]: r["seeds"] for r in doc["rows"]}
+    assert seeds == {"family": [0, 1], "family-schedule": [0], "family + 1 --set": [0]}
+    assert "| Pour-v1 | PPO | family-schedule | features | reward |" in paths["report"].read_text()
 
 
 def test_the_expert_is_a_reference_row_over_the_runs_unseen_containers(tmp_path):
@@ -90,8 +109,8 @@ def test_the_expert_is_a_reference_row_over_the_runs_unseen_containers(tmp_path)
     assert ref["trained_success"]["mean"] == 1.0
     text = paths["report"].read_text()
     assert (
-        "| SCRIPTED | features | hand-written (reference) | deterministic | - | catalogue (2) | 1 |"
-        in text
+        "| SCRIPTED | - | features | hand-written (reference) | deterministic | - | catalogue (2) "
+        "| 1 |" in text
     )
     bad = tmp_path / "bad.json"
     bad.write_text("{}")
@@ -138,7 +157,7 @@ def test_a_family_run_is_a_row_of_its_own_scored_against_references_on_its_membe
     assert (tmp_path / "sum" / "scripted-expert-pour-v1-procedural-test.json").is_file()
     text = paths["report"].read_text()
     assert "| procedural:train | procedural:test (2) | 1 |" in text
-    assert "| Pour-v1 | PPO (gSDE) | features | reward |" in text
+    assert "| Pour-v1 | PPO (gSDE) | - | features | reward |" in text
 
 
 def test_a_family_run_scored_on_the_catalogue_too_gets_references_with_every_one_unseen(

@@ -7,15 +7,16 @@ evaluation, its learning curve, its wall time) and writes ``docs/baselines.md`` 
 committed: the report can be regenerated from them without the run directories (their
 checkpoints and replay buffers are hundreds of MB).
 
-A row is one way of training (environment, algorithm, observation mode, whether it learnt
-from the reward alone, cloned the expert, or cloned then learnt, which model of a run
-was evaluated: the last step's or, with ``--keep-best``, the best curve point's, what it
-trained on and which unseen containers it was scored on): its seeds' mean
-of each metric, with a 95 % bootstrap interval over the seeds, and over the seeds and the
-unseen containers, rliable's aggregates (:mod:`pour_gym.agents.evaluation.aggregate`): the
-interquartile mean of the return normalised between a seeded random policy (0) and the
-scripted expert (1) on the same episodes, and the probability that a seed beats the expert
-on a container, each with a stratified-bootstrap interval.
+A row is one way of training (environment, algorithm, the ``agents/hyperparams.yaml``
+recipe, observation mode, whether it learnt from the reward alone, cloned the expert, or
+cloned then learnt, which model of a run was evaluated: the last step's or, with
+``--keep-best``, the best curve point's, what it trained on and which unseen containers
+it was scored on): its seeds' mean of each metric, with a 95 % bootstrap interval over
+the seeds, and over the seeds and the unseen containers, rliable's aggregates
+(:mod:`pour_gym.agents.evaluation.aggregate`): the interquartile mean of the return
+normalised between a seeded random policy (0) and the scripted expert (1) on the same
+episodes, and the probability that a seed beats the expert on a container, each with a
+stratified-bootstrap interval.
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ import csv
 import json
 import os
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -61,6 +63,17 @@ def training_kind(config: dict) -> str:
         return "reward"
     steps = config.get("hyperparameters", {}).get("gradient_steps", 1)
     return "clone" if steps == 0 else "clone + RL"
+
+
+def recipe_name(config: dict) -> str:
+    """The run's ``agents/hyperparams.yaml`` recipe as the report names it.
+
+    ``"family-schedule"``, followed by ``" + 2 --set"`` where the run overrode arguments of
+    it; ``"-"`` for a run trained without one.
+    """
+    recipe = config.get("recipe") or "-"
+    overrides = config.get("overrides") or {}
+    return recipe + (f" + {len(overrides)} --set" if overrides else "")
 
 
 def model_kind(config: dict) -> str:
@@ -145,6 +158,7 @@ def run_summary(run_dir: Path) -> dict:
         "algo": config["algo"],
         "obs_mode": config["obs_mode"],
         "kind": training_kind(config),
+        "recipe": recipe_name(config),
         "model": model_kind(config),
         # Exploration other than the algorithm's own Gaussian noise (a row of its own).
         "exploration": "gSDE" if config.get("hyperparameters", {}).get("use_sde") else "",
@@ -262,6 +276,7 @@ def reference_summary(eval_path: Path, trained_on: tuple[str, ...] = ("red_cup",
         "algo": algo,
         "obs_mode": "features" if algo == "scripted" else "-",
         "kind": kind,
+        "recipe": "-",
         "model": "deterministic" if algo == "scripted" else "seeded per episode",
         "seed": 0,
         "timesteps": 0,
@@ -376,12 +391,29 @@ def _aggregate_cell(value: tuple[float, tuple[float, float] | None] | None) -> s
     return f"{v:.2f}" + (f" [{interval[0]:.2f}, {interval[1]:.2f}]" if interval else "")
 
 
-def _group_key(s: dict) -> tuple[str, str, str, str, str, str, str]:
-    """A row: the env, how it learnt, which model, what it trained on and was scored on."""
+class RowKey(NamedTuple):
+    """What makes runs seeds of one row.
+
+    The env, how it learnt, which model, what it trained on and was scored on.
+    """
+
+    env: str
+    algo: str
+    recipe: str
+    obs_mode: str
+    kind: str
+    model: str
+    objects: str
+    scored_on: str
+
+
+def _group_key(s: dict) -> RowKey:
+    """The row a run summary is a seed of."""
     algo = s["algo"] + (f" ({s['exploration']})" if s.get("exploration") else "")
-    return (
-        s["env"], algo, s["obs_mode"], s["kind"], s.get("model", "last step"),
-        s.get("objects") or "-", scored_on(s["eval_rows"]),
+    # A summary written before the report kept the recipe has none ("-", as a reference).
+    return RowKey(
+        s["env"], algo, s.get("recipe", "-"), s["obs_mode"], s["kind"],
+        s.get("model", "last step"), s.get("objects") or "-", scored_on(s["eval_rows"]),
     )  # fmt: skip
 
 
@@ -406,7 +438,7 @@ def _minutes(wall: list[float], runs: int) -> str:
     return text + (f", {len(wall)} of {runs} runs" if len(wall) < runs else "")
 
 
-def _plot(groups: dict[tuple, list[dict]], path: Path) -> Path:
+def _plot(groups: dict[RowKey, list[dict]], path: Path) -> Path:
     """Learning curves: each row's mean success against env steps, the seeds' range as a band."""
     import matplotlib
 
@@ -428,12 +460,12 @@ def _plot(groups: dict[tuple, list[dict]], path: Path) -> Path:
             [[dict(zip(c["timesteps"], c["success"], strict=True))[x] for x in steps]
              for c in curves]
         )  # fmt: skip
-        env, algo, mode, kind, model, objects, _ = key
         seeds = f"{len(curves)} seed" + ("s" if len(curves) > 1 else "")
-        how = ", sampled" if "sampled" in model else ""
+        how = ", sampled" if "sampled" in key.model else ""
+        recipe = f" {key.recipe}" if key.recipe != "-" else ""
         label = (
-            f"{env.split('/')[-1]} {_algorithm(algo, kind)} {mode} on {objects}, {kind}{how} "
-            f"({seeds})"
+            f"{key.env.split('/')[-1]} {_algorithm(key.algo, key.kind)}{recipe} {key.obs_mode}"
+            f" on {key.objects}, {key.kind}{how} ({seeds})"
         )
         line = ax.plot(steps, ys.mean(axis=0), "o-", label=label, markersize=3)[0]
         if len(curves) > 1:
@@ -506,18 +538,15 @@ def baselines_report(
     for s in found:
         if s["algo"] in REFERENCES:
             references.setdefault((s["env"], scored_on(s["eval_rows"])), {})[s["algo"]] = s
-    groups: dict[tuple, list[dict]] = {}
+    groups: dict[RowKey, list[dict]] = {}
     for s in found:
         groups.setdefault(_group_key(s), []).append(s)
-    header = ["env", "algorithm", "observation", "learnt from", "model", "trained on",
+    header = ["env", "algorithm", "recipe", "observation", "learnt from", "model", "trained on",
               "unseen", "seeds", *METRICS.values(), "normalised return, unseen (IQM)",
               "P(above the expert), unseen", "env steps", "wall time (min)"]  # fmt: skip
     table, rows = [], []
     for key, group in sorted(groups.items()):
-        env, algo, mode, kind, model, objects, where = key
-        row = {"env": env, "algo": algo, "obs_mode": mode, "kind": kind, "model": model,
-               "objects": objects, "scored_on": where,
-               "seeds": sorted(s["seed"] for s in group)}  # fmt: skip
+        row = {**key._asdict(), "seeds": sorted(s["seed"] for s in group)}
         cells = []
         for name in METRICS:
             values = [s["metrics"][name] for s in group]
@@ -527,7 +556,7 @@ def baselines_report(
             cells.append(_cell(row[name], 2 if "success" in name else 1))
         wall = [s["wall_seconds"] / 60 for s in group if s["wall_seconds"] is not None]
         steps = sorted({s["timesteps"] for s in group})
-        agg = aggregates(group, references.get((env, where), {}))
+        agg = aggregates(group, references.get((key.env, key.scored_on), {}))
         row.update(
             timesteps=steps,
             wall_minutes=wall,
@@ -537,13 +566,14 @@ def baselines_report(
         rows.append(row)
         table.append(
             [
-                env.split("/")[-1],
-                _algorithm(algo, kind),
-                mode,
-                kind,
-                model,
-                objects,
-                where,
+                key.env.split("/")[-1],
+                _algorithm(key.algo, key.kind),
+                key.recipe,
+                key.obs_mode,
+                key.kind,
+                key.model,
+                key.objects,
+                key.scored_on,
                 str(len(group)),
                 *cells,
                 _aggregate_cell(row["iqm"]),
@@ -561,6 +591,8 @@ def baselines_report(
         "Each row is one way of training (on the red cup, or over a procedural family), run "
         "with several seeds; each cell is the mean over the seeds with a 95 % "
         "stratified-bootstrap interval over them in brackets (one seed: no interval). "
+        "*Recipe*: the run's recipe in `agents/hyperparams.yaml` (`+ n --set`: with n of its "
+        "arguments overridden; `-`: none, or a run summarised before the report kept it). "
         "*Trained on*: what the run trained on, and the success on its evaluation episodes "
         "of those containers; *unseen*: the containers the run never trained on that its "
         "unseen metrics are the mean over (the 11 catalogue containers but the red cup, all "
@@ -583,7 +615,7 @@ def baselines_report(
         "1 and above 0.5: beyond the expert. A row trained and evaluated with reward "
         "weights of its own (the residual's) has none: its returns are in other units.",
         "",
-        markdown_table(header, table, align="lllllllr" + "r" * (len(METRICS) + 4)),
+        markdown_table(header, table, align="llllllllr" + "r" * (len(METRICS) + 4)),
         "",
         f"![learning curves]({os.path.relpath(curves, Path(report).parent)})",
         "",
