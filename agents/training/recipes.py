@@ -25,7 +25,7 @@ import yaml
 
 from pour_gym.agents.training.moved_modules import importable_old_paths
 from pour_gym.agents.training.noise import NoiseSchedule
-from pour_gym.agents.training.schedule import StepSchedule
+from pour_gym.agents.training.schedule import SCHEDULABLE, StepSchedule
 from pour_gym.errors import InputError
 
 if TYPE_CHECKING:  # the residual module loads the envs (pybullet): only when a recipe has one
@@ -206,16 +206,10 @@ def load_recipe(
         noise_schedule=(
             NoiseSchedule.from_recipe(own["noise_schedule"]) if own.get("noise_schedule") else None
         ),
-        env_schedule=(
-            StepSchedule.from_recipe("env_schedule", own["env_schedule"])
-            if own.get("env_schedule")
-            else None
-        ),
-        algo_schedule=(
-            StepSchedule.from_recipe("algo_schedule", own["algo_schedule"])
-            if own.get("algo_schedule")
-            else None
-        ),
+        **{
+            key: StepSchedule.from_recipe(key, own[key]) if own.get(key) else None
+            for key in SCHEDULABLE  # env_schedule, algo_schedule
+        },
     )
     scheduled = recipe.algo_schedule
     if scheduled and scheduled.name in (overrides or {}) and scheduled.points[0][0] == 0:
