@@ -195,6 +195,47 @@ def test_results_group_by_shape_parameter_buckets():
     assert bucket_of({"handle": False}, "handle") == "no handle"
 
 
+def test_an_evaluation_over_a_family_is_tabled_by_shape_too():
+    """A family's evaluation table (eval.md, ``pour-gym evaluate``) groups its members by
+    shape: each bucket's success (with its Wilson interval) and failures by why; a
+    catalogue's or a source x target matrix's table has no such section."""
+    from pour_gym.agents.evaluation.evaluate import evaluation_table
+
+    names = family_members("procedural:test")[:12]
+
+    def row(name, success, source=None):
+        return {"object": name, "source": source or name, "target": name, "trained_on": False,
+                "success": success, "return": 1.0, "amount_error": 4.0, "spilled": 0.0,
+                "outcome_success": success, "outcome_overshot": 1.0 - success}  # fmt: skip
+
+    # Members taller than 10 cm succeed, the others overshoot.
+    rows = [row(n, float(member_spec(n).height > 0.1)) for n in names]
+    mean = {k: float(np.mean([r[k] for r in rows])) for k in rows[0] if k not in
+            ("object", "source", "target", "trained_on")}  # fmt: skip
+    result = {"env": "PourGym/Pour-v2", "episodes": 2, "rows": rows, "mean": mean}
+    text = evaluation_table(result)
+    section = text[text.index("## By shape") :]
+    assert "### by profile" in section and "### by wall" in section
+    assert "| height | members | success | amount error | spilled | overshot (share) |" in section
+    for line in section[section.index("### by height") :].split("\n")[4:]:
+        if not line.startswith("| "):
+            break
+        bucket, _, success, _, _, overshot, under, spill = [
+            c.strip() for c in line.strip("|").split("|")
+        ]
+        tall = float(bucket.split("-")[0]) >= 10
+        assert success.startswith("1.000 [" if tall else "0.000 [")
+        assert overshot == ("0.000" if tall else "1.000")
+        assert under == spill == "-"  # outcomes these rows do not record
+        lo, hi = (float(x) for x in success[7:].strip(" []").split(","))
+        assert lo <= float(success[:5]) <= hi and (hi - lo) > 0.1  # 2 x members episodes
+    catalogue = {**result, "rows": [{**r, "object": "red_cup", "source": "red_cup",
+                                     "target": "red_cup"} for r in rows[:1]]}  # fmt: skip
+    assert "## By shape" not in evaluation_table(catalogue)
+    matrix = {**result, "rows": [row(names[0], 1.0, source=names[1])]}
+    assert "## By shape" not in evaluation_table(matrix)
+
+
 def test_warping_over_a_family_reports_iou_per_bucket():
     from pour_gym.agents.evaluation.family import family_warping, family_warping_report
 

@@ -232,6 +232,11 @@ def evaluation_table(result: dict) -> str:
             "\nfailures: the share of episodes that failed, by why (envs.rules.POUR_OUTCOMES)"
         )
     lines.append("\n\\* trained on this object")
+    from pour_gym.agents.evaluation.family import shape_section  # family imports this module
+
+    shapes = shape_section(result) if pours else None
+    if shapes:
+        lines.append("\n" + shapes)
     return "\n".join(lines)
 
 

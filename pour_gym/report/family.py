@@ -72,14 +72,33 @@ def mean_of(rows: list[dict], values: tuple[str, ...]) -> dict:
     return summary
 
 
+def _cell(bucket: dict, value: str) -> str:
+    """A bucket's mean of a value; the success with its interval where it has one."""
+    if bucket[value] is None:
+        return "-"
+    interval = bucket.get(f"{value}_interval")
+    return f"{bucket[value]:.3f}" + (f" [{interval[0]:.2f}, {interval[1]:.2f}]" if interval else "")
+
+
 def bucket_tables(summary: dict[str, dict[str, dict]], values: tuple[str, ...]) -> str:
-    """Markdown: one table per parameter, a row per bucket, a column per value."""
+    """Markdown: one table per parameter, a row per bucket, a column per value.
+
+    A value with an interval in the bucket (``"success_interval"``) is followed by it in
+    brackets; an outcome's share of the episodes (``outcome_under_poured``) is headed
+    ``under-poured (share)``.
+    """
+    names = [
+        f"{v.removeprefix('outcome_').replace('_', '-')} (share)"
+        if v.startswith("outcome_")
+        else v.replace("_", " ")
+        for v in values
+    ]
     blocks = []
     for parameter, buckets in summary.items():
         rows = [
-            [bucket, str(s["members"]), *("-" if s[v] is None else f"{s[v]:.3f}" for v in values)]
+            [bucket, str(s["members"]), *(_cell(s, v) for v in values)]
             for bucket, s in buckets.items()
         ]
-        header = [parameter.replace("_", " "), "members", *values]
+        header = [parameter.replace("_", " "), "members", *names]
         blocks.append(f"### by {parameter.replace('_', ' ')}\n\n" + markdown_table(header, rows))
     return "\n\n".join(blocks)
