@@ -439,14 +439,18 @@ def _minutes(wall: list[float], runs: int) -> str:
 
 
 def _plot(groups: dict[RowKey, list[dict]], path: Path) -> Path:
-    """Learning curves: each row's mean success against env steps, the seeds' range as a band."""
+    """Learning curves, a panel per env.
+
+    Each row's mean success against env steps, a band for its seeds' 95 % bootstrap
+    interval.
+    """
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(8, 4.5))
     drawn: set[tuple] = set()
+    panels: dict[str, list[tuple[str, list[int], np.ndarray]]] = {}
     for key, runs in sorted(groups.items()):
         curves = [r["curve"] for r in runs if r["curve"]]
         shapes = {(tuple(c["timesteps"]), tuple(c["success"])) for c in curves}
@@ -464,21 +468,33 @@ def _plot(groups: dict[RowKey, list[dict]], path: Path) -> Path:
         how = ", sampled" if "sampled" in key.model else ""
         recipe = f" {key.recipe}" if key.recipe != "-" else ""
         label = (
-            f"{key.env.split('/')[-1]} {_algorithm(key.algo, key.kind)}{recipe} {key.obs_mode}"
-            f" on {key.objects}, {key.kind}{how} ({seeds})"
+            f"{_algorithm(key.algo, key.kind)}{recipe} {key.obs_mode} on {key.objects}, "
+            f"{key.kind}{how} ({seeds})"
         )
-        line = ax.plot(steps, ys.mean(axis=0), "o-", label=label, markersize=3)[0]
-        if len(curves) > 1:
-            band = np.array([mean_interval(list(ys[:, k])) for k in range(len(steps))])
-            ax.fill_between(steps, band[:, 0], band[:, 1], color=line.get_color(), alpha=0.2)
-    # Log steps: a clone's 2000 steps and a learner's 400k on one axis.
-    ax.set_xscale("log")
-    ax.set_xlabel("environment steps")
-    ax.set_ylabel("success on the training containers\n(as the row's model is scored)")
-    ax.set_ylim(-0.02, 1.02)
-    ax.set_title("Learning curves: mean over seeds, band: its 95 % bootstrap interval", fontsize=10)
-    if ax.get_legend_handles_labels()[0]:  # rows without curves (references) draw none
-        ax.legend(fontsize=7, loc="center left")
+        panels.setdefault(key.env.split("/")[-1], []).append((label, steps, ys))
+    names = sorted(panels) or ["-"]  # rows without curves (references) draw none
+    fig, axes = plt.subplots(
+        len(names), 1, figsize=(8, 2.6 * len(names) + 0.6), squeeze=False, sharex=True
+    )
+    for ax, name in zip(axes[:, 0], names, strict=True):
+        for label, steps, ys in panels.get(name, []):
+            line = ax.plot(steps, ys.mean(axis=0), "o-", label=label, markersize=3)[0]
+            if len(ys) > 1:
+                band = np.array([mean_interval(list(ys[:, k])) for k in range(len(steps))])
+                ax.fill_between(steps, band[:, 0], band[:, 1], color=line.get_color(), alpha=0.2)
+        # Log steps: a clone's 2000 steps and a learner's 400k on one axis.
+        ax.set_xscale("log")
+        ax.set_ylim(-0.02, 1.02)
+        ax.set_title(name, fontsize=9, loc="left")
+        ax.set_ylabel("success")
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(fontsize=6.5, loc="upper left")
+    axes[-1, 0].set_xlabel("environment steps")
+    fig.suptitle(
+        "Learning curves: success on the training containers as each row's model is scored;"
+        "\nmean over seeds, band: its 95 % bootstrap interval",
+        fontsize=9,
+    )
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
