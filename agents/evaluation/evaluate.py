@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from tqdm import tqdm
 
+from pour_gym.agents.evaluation.shapes import shape_section
 from pour_gym.agents.policies.rollout import rollout
 from pour_gym.envs import make, mean_metrics, task_of
 from pour_gym.report.tables import markdown_table
@@ -232,8 +233,6 @@ def evaluation_table(result: dict) -> str:
             "\nfailures: the share of episodes that failed, by why (envs.rules.POUR_OUTCOMES)"
         )
     lines.append("\n\\* trained on this object")
-    from pour_gym.agents.evaluation.family import shape_section  # family imports this module
-
     shapes = shape_section(result) if pours else None
     if shapes:
         lines.append("\n" + shapes)
