@@ -9,6 +9,7 @@ Used by every evaluation over a family (``eval.md``, ``pour-gym evaluate``:
 from __future__ import annotations
 
 from pour_gym.agents.evaluation.aggregate import wilson_interval
+from pour_gym.objects.procedural import is_member, member_spec
 from pour_gym.report.family import bucket_tables, by_bucket
 
 VALUES = ("success", "amount_error", "spilled")
@@ -32,8 +33,6 @@ def member_buckets(
         :func:`~pour_gym.report.family.by_bucket` of them, each bucket's success with a 95 %
         Wilson interval over its episodes (``"success_interval"``).
     """
-    from pour_gym.objects.procedural import member_spec
-
     rows = [{**r, "spec": member_spec(r["source"]).to_dict()} for r in rows]
     buckets = by_bucket(rows, values)
     for groups in buckets.values():
@@ -52,8 +51,6 @@ def shape_section(result: dict) -> str | None:
     height, rim radius and wall): which shapes a policy pours and which it fails, and why
     (the share of episodes overshot, under-poured and spilled).
     """
-    from pour_gym.objects.procedural import is_member
-
     rows = result["rows"]
     if not rows or not all(
         is_member(r["object"]) and r.get("source", r["object"]) == r.get("target", r["object"])
