@@ -186,8 +186,8 @@ def test_water_drains_by_torricellis_law_and_honey_slower():
     honey = efflux(config=PRESETS["honey"].fluid_config(), num_threads=1)
     assert honey.discharge < 0.8 * water.discharge
     assert honey.drain_s > 1.5 * water.drain_s
-    # A finer spacing fills more of the hole: 0.536 at 3.5 mm measured (0.553 at 2.5 mm,
-    # `pour-gym bench efflux`), the draining still Torricelli's.
+    # A finer spacing fills more of the hole: 0.521-0.536 at 3.5 mm measured (0.553-0.558
+    # at 2.5 mm, `pour-gym bench efflux`), the draining still Torricelli's.
     from pour_gym.apps.bench.liquids import bench_efflux, efflux_table
 
     (fine,) = bench_efflux((0.0035,))["rows"]
@@ -213,6 +213,24 @@ def test_a_dam_break_front_follows_martin_and_moyce():
     assert run.fronts[-1] > 6.5  # it reached the far wall (7 a)
 
 
+def test_a_floor_with_friction_holds_the_dam_breaks_front_back():
+    """On the envs' table (its friction 20/s) the surge reaches the far wall later than on
+    a floor that lets it slide, and never leads it by more than a spacing."""
+    from pour_gym.fluid.validation import DAM_WIDTH, dam_break
+
+    free, held = dam_break(num_threads=1), dam_break(num_threads=1, floor_friction=20.0)
+    assert held.floor_friction == 20.0 and free.floor_friction is None
+    assert held.times[-1] > free.times[-1] + 0.3  # T: later by at least 0.02 s
+    n = min(len(free.times), len(held.times))
+    assert np.all(held.fronts[:n] <= free.fronts[:n] + 0.005 / DAM_WIDTH)
+    from dataclasses import asdict
+
+    from pour_gym.apps.bench.liquids import flows_table
+
+    doc = {"efflux": {}, "dam_break": asdict(free), "dam_break_floor": asdict(held), "pours": {}}
+    assert "| dam removed at once, a floor with friction (20/s) |" in flows_table(doc)
+
+
 @pytest.mark.parametrize("speed", [-0.5, float("nan")])
 def test_a_dam_break_refuses_a_gate_speed_that_is_no_speed(speed):
     from pour_gym.errors import InputError
@@ -220,6 +238,8 @@ def test_a_dam_break_refuses_a_gate_speed_that_is_no_speed(speed):
 
     with pytest.raises(InputError, match="gate_speed must be a speed of 0 m/s or more"):
         dam_break(gate_speed=speed, fields=(None, None))
+    with pytest.raises(InputError, match="floor_friction must be a rate of 0 1/s or more"):
+        dam_break(floor_friction=speed, fields=(None, None))
     # Lauber and Hager's slowest gate for a column 2 a = 11.43 cm deep: sqrt(g h / 2).
     assert gate_speed_limit(0.1143) == pytest.approx(0.7488, abs=1e-4)
 

@@ -480,6 +480,7 @@ class DamBreak:
     Attributes:
         width: the column's width a, m (its height 2a).
         gate_speed: the dam's upward speed on release, m/s (0: removed at once).
+        floor_friction: the floor's friction, 1/s (None: it lets the liquid slide).
         times: (T,) ``t sqrt(2 g / a)``.
         fronts: (T,) ``x / a``, the front's distance from the back wall over a.
         band: (T, 2) the lowest and highest front Martin and Moyce measured at each time
@@ -489,6 +490,7 @@ class DamBreak:
 
     width: float
     gate_speed: float
+    floor_friction: float | None
     times: np.ndarray
     fronts: np.ndarray
     band: np.ndarray
@@ -530,6 +532,7 @@ def dam_break(
     num_threads: int | None = None,
     fields=None,
     gate_speed: float = 0.0,
+    floor_friction: float | None = None,
 ) -> DamBreak:
     """A column a wide and 2a high, held by a dam for 1 s, released; its front over time.
 
@@ -547,17 +550,29 @@ def dam_break(
         gate_speed: 0 removes the dam at once; above 0, it is lifted at this speed (m/s),
             as a gate is in a flume (:func:`gate_speed_limit`), and removed once clear of
             the column.
+        floor_friction: None: the tank's floor lets the liquid slide, as its walls do. A
+            rate (1/s): the tank stands on the envs' table, whose friction takes the
+            horizontal velocity of the particles touching it down at this rate
+            (``PBFConfig.floor_friction``; the envs' is 20), as a real floor holds back
+            the thin sheet at the front.
     """
     if not (np.isfinite(gate_speed) and gate_speed >= 0.0):
         raise InputError(f"gate_speed must be a speed of 0 m/s or more, not {gate_speed}")
+    if floor_friction is not None and not (np.isfinite(floor_friction) and floor_friction >= 0):
+        raise InputError(f"floor_friction must be a rate of 0 1/s or more, not {floor_friction}")
     cfg = config or PBFConfig()
+    if floor_friction is not None:
+        cfg = dataclasses.replace(cfg, floor_friction=float(floor_friction))
     tank, dam = fields if fields is not None else tank_fields(width)
     s = cfg.spacing
     gx = np.arange(s / 2, width, s)
     gy = np.arange(-TANK_DEPTH / 2 + s / 2, TANK_DEPTH / 2, s)
     gz = np.arange(s / 2, 2.0 * width, s)  # the tank's floor is z = 0
     pts = np.stack(np.meshgrid(gx, gy, gz, indexing="ij"), -1).reshape(-1, 3)
-    fluid = PBFluid(pts, cfg, floor=None, num_threads=num_threads)
+    # The table at the tank's floor (z = 0): a particle there counts the nearer of the two
+    # as its wall, so the table adds only its friction.
+    floor = None if floor_friction is None else 0.0
+    fluid = PBFluid(pts, cfg, floor=floor, num_threads=num_threads)
     fluid.add_collider(tank)
     plug = fluid.add_collider(dam)
     for _ in range(60):
@@ -590,4 +605,4 @@ def dam_break(
     band[seen, 1] = np.nanmax(curves[:, seen], axis=0)
     within = (fronts_a >= 0.95 * band[:, 0]) & (fronts_a <= 1.05 * band[:, 1])
     inside = float(within[seen].mean()) if seen.any() else float("nan")
-    return DamBreak(width, float(gate_speed), times_a, fronts_a, band, inside)
+    return DamBreak(width, float(gate_speed), floor_friction, times_a, fronts_a, band, inside)

@@ -111,13 +111,14 @@ def bench_flows(liquids: tuple[str, ...] = ("water", "oil", "syrup", "honey"), o
     from dataclasses import asdict
 
     from pour_gym.fluid.liquid import PRESETS
+    from pour_gym.fluid.pbf import PBFConfig
     from pour_gym.fluid.validation import DAM_WIDTH, dam_break, efflux, gate_speed_limit
     from pour_gym.sim.liquid_pour import liquid_pour
 
     def plain(result) -> dict:
         return {k: v.tolist() if hasattr(v, "tolist") else v for k, v in asdict(result).items()}
 
-    bar = tqdm(total=4 + len(liquids), desc="bench flows", file=sys.stderr)
+    bar = tqdm(total=5 + len(liquids), desc="bench flows", file=sys.stderr)
     drains = {}
     for name in ("water", "honey"):
         drains[name] = plain(efflux(config=PRESETS[name].fluid_config(), num_threads=1))
@@ -128,12 +129,16 @@ def bench_flows(liquids: tuple[str, ...] = ("water", "oil", "syrup", "honey"), o
     # front's early lead an instant release accounts for.
     gate = plain(dam_break(num_threads=1, gate_speed=gate_speed_limit(2.0 * DAM_WIDTH)))
     bar.update()
+    # And on the envs' table, whose friction holds back the sheet along the floor.
+    floor = plain(dam_break(num_threads=1, floor_friction=PBFConfig().floor_friction))
+    bar.update()
     pours = {}
     for name in liquids:
         pours[name] = plain(liquid_pour(name, num_threads=1))
         bar.update()
     bar.close()
-    doc = {"efflux": drains, "dam_break": dam, "dam_break_gate": gate, "pours": pours}
+    doc = {"efflux": drains, "dam_break": dam, "dam_break_gate": gate,
+           "dam_break_floor": floor, "pours": pours}  # fmt: skip
     if out is not None:
         doc["figure"] = str(flows_figure(doc, out))
     return doc
@@ -226,17 +231,16 @@ def flows_figure(doc: dict, out) -> str:
     ax.set(xlabel="time, s", ylabel="level, cm", title="efflux (dashed: Torricelli)")
     ax.legend()
     ax = axes[1]
+    for d, style in zip(_dam_breaks(doc), ("-", "--", ":"), strict=False):
+        width = 2.0 if style == "-" else 1.5
+        ax.plot(d["times"], d["fronts"], color=PRESETS["water"].color, lw=width, ls=style,
+                label=_release(d))  # fmt: skip
     d = doc["dam_break"]
-    ax.plot(d["times"], d["fronts"], color=PRESETS["water"].color, lw=2, label="water, here")
-    if "dam_break_gate" in doc:
-        g = doc["dam_break_gate"]
-        ax.plot(g["times"], g["fronts"], color=PRESETS["water"].color, lw=1.5, ls="--",
-                label=f"gate lifted at {g['gate_speed']:.2f} m/s")  # fmt: skip
     for (label, (tt, zz)), marker in zip(MARTIN_MOYCE.items(), "os", strict=True):
         ax.plot(tt, zz, marker, mfc="none", color="k", label=f"Martin and Moyce, {label}")
     ax.set(xlabel="t sqrt(2 g / a)", ylabel="front x / a", title="dam break, a = 5.7 cm",
            xlim=(0, max(d["times"]) * 1.05), ylim=(0.8, 7.5))  # fmt: skip
-    ax.legend()
+    ax.legend(loc="lower right", fontsize="small")  # the curves rise through the upper left
     ax = axes[2]
     for name, r in doc["pours"].items():
         ax.plot(r["times"], r["out"], color=PRESETS[name].color, lw=2, label=name)
@@ -248,6 +252,21 @@ def flows_figure(doc: dict, out) -> str:
     fig.savefig(path, dpi=90)
     plt.close(fig)
     return str(path)
+
+
+def _dam_breaks(doc: dict) -> list[dict]:
+    """:func:`bench_flows`' dam breaks: removed at once, behind a gate, on the table."""
+    return [doc[k] for k in ("dam_break", "dam_break_gate", "dam_break_floor") if k in doc]
+
+
+def _release(dam: dict) -> str:
+    """How a dam break (``DamBreak`` as a dict) was let go, and on what floor."""
+    release = "dam removed at once"
+    if dam["gate_speed"]:
+        release = f"gate lifted at {dam['gate_speed']:.2f} m/s"
+    if dam.get("floor_friction") is not None:
+        release += f", a floor with friction ({dam['floor_friction']:g}/s)"
+    return release
 
 
 def _front_ratios(dam: dict) -> tuple[float, float, float]:
@@ -277,14 +296,11 @@ def flows_table(doc: dict) -> str:
         [[name, f"{e['discharge']:.3f}", f"{e['drain_s']:.3f}", f"{e['torricelli_s']:.3f}",
           f"{e['drain_s'] / e['torricelli_s']:.3f}"] for name, e in doc["efflux"].items()],
     )  # fmt: skip
-    dams = [doc["dam_break"]] + ([doc["dam_break_gate"]] if "dam_break_gate" in doc else [])
+    dams = _dam_breaks(doc)
     rows = []
     for d in dams:
         lead, low, high = _front_ratios(d)
-        release = "dam removed at once"
-        if d["gate_speed"]:
-            release = f"gate lifted at {d['gate_speed']:.2f} m/s"
-        rows.append([release, f"{d['inside']:.0%}", f"{lead:.2f}x the band's top",
+        rows.append([_release(d), f"{d['inside']:.0%}", f"{lead:.2f}x the band's top",
                      f"{low:.2f}-{high:.2f}x its edges"])  # fmt: skip
     dam = markdown_table(
         [f"dam break (a = {dams[0]['width'] * 100:.1f} cm)",
