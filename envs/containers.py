@@ -45,10 +45,11 @@ class ContainerStore:
             raise InputError(f"a container store keeps at least one container, not {capacity}")
         self.capacity = int(capacity)
         self._entries: OrderedDict[str, dict[str, object]] = OrderedDict()
+        self._small: dict[tuple[str, str], object] = {}
         self._lock = threading.Lock()
         self._dropped = 0  # containers dropped since the last collection
 
-    def get(self, name: str, kind: str, load: Callable[[], T]) -> T:
+    def get(self, name: str, kind: str, load: Callable[[], T], small: bool = False) -> T:
         """The ``kind`` of container ``name`` (``load()`` makes it when it is not kept).
 
         Args:
@@ -56,7 +57,18 @@ class ContainerStore:
             kind: what of it (``"asset"``, ``"field"``, ...).
             load: makes the value; called outside the lock (loads may take seconds), so two
                 threads may both load a value the first time: either result is kept.
+            small: a value of a few kB that takes long to make and has no disk cache (what
+                a source holds by tilt: a second each): kept for good, outside the
+                capacity, so a container met again after its eviction does not make it
+                again (200 containers: a few hundred kB).
         """
+        if small:
+            with self._lock:
+                if (name, kind) in self._small:
+                    return self._small[name, kind]  # type: ignore[return-value]
+            value = load()
+            with self._lock:
+                return self._small.setdefault((name, kind), value)  # type: ignore[return-value]
         with self._lock:
             entry = self._entries.get(name)
             if entry is not None:
@@ -83,6 +95,10 @@ class ContainerStore:
         """Keep what ``other`` holds too (an env that joins a shared store brings its own)."""
         with other._lock:
             entries = [(name, dict(entry)) for name, entry in other._entries.items()]
+            small = dict(other._small)
+        with self._lock:
+            for key, value in small.items():
+                self._small.setdefault(key, value)
         for name, entry in entries:
             for kind, value in entry.items():
                 self.get(name, kind, lambda value=value: value)
@@ -98,6 +114,7 @@ class ContainerStore:
         """Drop everything kept."""
         with self._lock:
             self._entries.clear()
+            self._small.clear()
         release()
 
 

@@ -495,11 +495,12 @@ class PourEnv(PourGymEnv):
 
         From the source as the policy knows it (its features' geometry), held as it is.
         """
-        seen = self.seen(name).geometry
         kind = f"held {self.holder.name} {self.max_tilt}"  # the envs of a vector env share
-        held = self._store.get(
-            name, kind, lambda: held_by_tilt(seen, self.frame.rotation, self.max_tilt)
-        )
+
+        def load() -> np.ndarray:
+            return held_by_tilt(self.seen(name).geometry, self.frame.rotation, self.max_tilt)
+
+        held = self._store.get(name, kind, load, small=True)
         return held / self.world.particle_volume
 
     def _count_now(self) -> dict:

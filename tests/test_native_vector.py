@@ -201,3 +201,24 @@ def test_a_store_keeps_the_containers_used_last():
     assert shared.get("a", "asset", lambda: load("never")) == "A" and len(shared) == 2
     with pytest.raises(ValueError, match="at least one"):
         ContainerStore(0)
+
+
+def test_a_store_keeps_small_values_of_containers_it_evicted():
+    # What a source holds by tilt takes a second to make and a kB to keep: an env over a
+    # family meets most sources again after their eviction, and must not make it again.
+    store, loads = ContainerStore(capacity=1), []
+
+    def load(name):
+        loads.append(name)
+        return np.full(3, len(loads))
+
+    for name in ("a", "b", "a", "b"):
+        store.get(name, "asset", lambda name=name: name)
+        store.get(name, "held", lambda name=name: load(name), small=True)
+    assert loads == ["a", "b"] and len(store) == 1  # the assets were evicted, not these
+    assert store.get("a", "held", lambda: load("never"), small=True).tolist() == [1, 1, 1]
+    shared = ContainerStore(capacity=4)
+    shared.adopt(store)
+    assert shared.get("b", "held", lambda: load("never"), small=True).tolist() == [2, 2, 2]
+    shared.clear()
+    assert shared.get("b", "held", lambda: load("b"), small=True).tolist() == [3, 3, 3]
