@@ -507,16 +507,22 @@ def test_a_sampling_policy_is_the_same_for_the_same_seed_and_leaves_torch_alone(
     assert not np.array_equal(actions[0][0], actions_of(sb3_policy(run, deterministic=True), 3)[0])
 
 
-def test_the_shipped_family_policy_acts_by_its_mean_and_names_no_container_trained_on():
-    """pour-v1-family-sde: trained over procedural:train, it loads as its mean action (the
-    same actions for the same episode) and counts no catalogue container as trained on."""
+@pytest.mark.parametrize(
+    ("name", "env_id"),
+    [("pour-v1-family-sde", "PourGym/Pour-v1"), ("pour-v2-family", "PourGym/Pour-v2")],
+)
+def test_the_shipped_family_policies_act_by_their_mean_and_name_no_container_trained_on(
+    name, env_id
+):
+    """Trained over procedural:train, each loads as its mean action (the same actions for
+    the same episode) on its env and counts no catalogue container as trained on."""
     import gymnasium as gym
 
     from pour_gym.agents.evaluation.evaluate import load_policy
     from pour_gym.agents.policies.rollout import SampledPolicy, rollout
 
-    loaded = load_policy("pour-v1-family-sde")
-    assert not isinstance(loaded.policy, SampledPolicy) and loaded.env_id == "PourGym/Pour-v1"
+    loaded = load_policy(name)
+    assert not isinstance(loaded.policy, SampledPolicy) and loaded.env_id == env_id
     assert len(loaded.trained_on) == 200 and "red_cup" not in loaded.trained_on
     env = gym.make(loaded.env_id, objects="red_cup", source_particles=300,
                    amount_range=(40, 80), max_episode_steps=20, **loaded.env_kwargs)  # fmt: skip
