@@ -58,7 +58,7 @@ class ContainerStore:
             load: makes the value; called outside the lock (loads may take seconds), so two
                 threads may both load a value the first time: either result is kept.
             small: a value of a few kB that takes long to make and has no disk cache (what
-                a source holds by tilt: a second each): kept for good, outside the
+                a source holds by tilt: 0.1-1 s each): kept for good, outside the
                 capacity, so a container met again after its eviction does not make it
                 again (200 containers: a few hundred kB).
         """

@@ -240,6 +240,10 @@ def test_a_dam_break_refuses_a_gate_speed_that_is_no_speed(speed):
         dam_break(gate_speed=speed, fields=(None, None))
     with pytest.raises(InputError, match="floor_friction must be a rate of 0 1/s or more"):
         dam_break(floor_friction=speed, fields=(None, None))
+    from pour_gym.fluid.liquid import PRESETS
+
+    with pytest.raises(InputError, match="for water only"):
+        dam_break(config=PRESETS["honey"].fluid_config(), floor_friction=20.0, fields=(None, None))
     # Lauber and Hager's slowest gate for a column 2 a = 11.43 cm deep: sqrt(g h / 2).
     assert gate_speed_limit(0.1143) == pytest.approx(0.7488, abs=1e-4)
 

@@ -562,6 +562,12 @@ def dam_break(
         raise InputError(f"floor_friction must be a rate of 0 1/s or more, not {floor_friction}")
     cfg = config or PBFConfig()
     if floor_friction is not None:
+        if cfg.viscosity > 0.0:
+            # Its wall drag would count the tank's floor and the table both.
+            raise InputError(
+                "a dam break on the table (floor_friction) is for water only: give a liquid "
+                "without a viscosity, or floor_friction=None"
+            )
         cfg = dataclasses.replace(cfg, floor_friction=float(floor_friction))
     tank, dam = fields if fields is not None else tank_fields(width)
     s = cfg.spacing
@@ -569,8 +575,8 @@ def dam_break(
     gy = np.arange(-TANK_DEPTH / 2 + s / 2, TANK_DEPTH / 2, s)
     gz = np.arange(s / 2, 2.0 * width, s)  # the tank's floor is z = 0
     pts = np.stack(np.meshgrid(gx, gy, gz, indexing="ij"), -1).reshape(-1, 3)
-    # The table at the tank's floor (z = 0): a particle there counts the nearer of the two
-    # as its wall, so the table adds only its friction.
+    # The table at the tank's floor (z = 0): a particle's density counts the nearer of the
+    # two as its wall, so for water the table adds only its friction.
     floor = None if floor_friction is None else 0.0
     fluid = PBFluid(pts, cfg, floor=floor, num_threads=num_threads)
     fluid.add_collider(tank)

@@ -231,10 +231,10 @@ def flows_figure(doc: dict, out) -> str:
     ax.set(xlabel="time, s", ylabel="level, cm", title="efflux (dashed: Torricelli)")
     ax.legend()
     ax = axes[1]
-    for d, style in zip(_dam_breaks(doc), ("-", "--", ":"), strict=False):
+    for dam, style in zip(_dam_breaks(doc), ("-", "--", ":"), strict=False):
         width = 2.0 if style == "-" else 1.5
-        ax.plot(d["times"], d["fronts"], color=PRESETS["water"].color, lw=width, ls=style,
-                label=_release(d))  # fmt: skip
+        ax.plot(dam["times"], dam["fronts"], color=PRESETS["water"].color, lw=width, ls=style,
+                label=_release(dam))  # fmt: skip
     d = doc["dam_break"]
     for (label, (tt, zz)), marker in zip(MARTIN_MOYCE.items(), "os", strict=True):
         ax.plot(tt, zz, marker, mfc="none", color="k", label=f"Martin and Moyce, {label}")
