@@ -370,6 +370,34 @@ def test_pour_v1_recipes_learn_from_the_reward_a_few_hundred_steps(algo, tmp_pat
     assert (out / "model.zip").read_bytes() == model.read_bytes()
 
 
+def test_evaluating_rows_in_two_workers_gives_the_one_workers_result():
+    """Rows in threads, each with its env and a copy of the policy: the same numbers, bit
+    for bit, for the scripted expert (its flow estimate is state) and a shipped model."""
+    from pour_gym.agents.evaluation.evaluate import load_policy
+    from pour_gym.agents.policies.scripted import ScriptedPourPolicy
+
+    small = {"source_particles": 300, "amount_range": (40, 80)}
+    objects = ["red_cup", "standard_cup", "broad_cup"]
+
+    def both(policy, env_id, names, episodes):
+        return [
+            evaluate_policy(policy, env_id, names, episodes, env_kwargs=small, workers=n)
+            for n in (1, 2)
+        ]
+
+    one, two = both(ScriptedPourPolicy(), "PourGym/Pour-v0", objects, 1)
+    assert one == two and len(one["rows"]) == 3
+    assert one["mean"]["success"] > 0  # the expert pours: the rows are not empty episodes
+    loaded = load_policy("pour-v2-family")
+    one, two = both(loaded.policy, loaded.env_id, ["procedural:test#0", "procedural:test#1"], 1)
+    assert one == two
+    sampled = load_policy("pour-v2-family", actions="sampled").policy
+    with pytest.raises(InputError, match="evaluate it with one worker"):
+        evaluate_policy(sampled, loaded.env_id, objects, 1, workers=2)
+    with pytest.raises(InputError, match="1 or more, not 0"):
+        evaluate_policy(sampled, loaded.env_id, objects, 1, workers=0)
+
+
 @pytest.mark.slow
 def test_evaluate_and_search_at_tiny_size():
     from pour_gym.agents.policies.scripted import ScriptedPourPolicy

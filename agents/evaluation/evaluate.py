@@ -9,17 +9,20 @@ each object as both (the default), or every source with every target (a matrix).
 
 from __future__ import annotations
 
+import copy
 import itertools
 import sys
 from collections.abc import Callable, Iterable
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
 from tqdm import tqdm
 
 from pour_gym.agents.evaluation.shapes import shape_section
-from pour_gym.agents.policies.rollout import rollout
+from pour_gym.agents.policies.rollout import SampledPolicy, rollout
 from pour_gym.envs import make, mean_metrics, task_of
+from pour_gym.errors import InputError
 from pour_gym.report.tables import markdown_table
 
 
@@ -66,7 +69,6 @@ def load_policy(
     """
     from pour_gym.agents.policies.rollout import sb3_policy
     from pour_gym.envs import POUR_V0
-    from pour_gym.errors import InputError
 
     if actions not in (None, "mean", "sampled"):
         raise InputError(f"actions are 'mean' or 'sampled', not {actions!r}")
@@ -123,6 +125,7 @@ def evaluate_policy(
     trained_on: Iterable[str] = (),
     source_objects: Iterable[str] | None = None,
     target_objects: Iterable[str] | None = None,
+    workers: int = 1,
 ) -> dict:
     """Run ``episodes`` episodes per object (or per source-target pair) and summarise them.
 
@@ -138,6 +141,14 @@ def evaluate_policy(
         source_objects: a pouring task: sources of a matrix of rows (with
             ``target_objects``).
         target_objects: a pouring task: targets of a matrix of rows (default: ``objects``).
+        workers: rows evaluated at once, each in a thread of this process with an env and a
+            copy of the policy of its own. The fluid's kernel runs without Python's lock,
+            so two workers keep two cores busy; each row's episodes, and so the result,
+            are the same for any number of workers.
+
+    Raises:
+        InputError: ``workers`` below 1, or above 1 for a policy that samples its actions
+            (they come from torch's one global generator, which threads would share).
 
     Returns:
         ``{"env", "episodes", "seed", "rows": [{"object", "source", "target", "trained_on", and
@@ -161,18 +172,34 @@ def evaluate_policy(
         pairs = [(name, name) for name in objects]
     if not pairs:
         raise ValueError("no containers to evaluate on")
+    workers = int(workers)
+    if workers < 1:
+        raise InputError(
+            f"workers is how many rows are evaluated at once, 1 or more, not {workers}"
+        )
+    if workers > 1 and samples(policy):
+        raise InputError(
+            "a policy that samples its actions draws them from torch's global generator, "
+            "which threads would share: evaluate it with one worker (workers=1)"
+        )
     trained = set(trained_on)
-    rows = []
     bar = tqdm(total=len(pairs) * episodes, desc=f"evaluate {env_id}", file=sys.stderr)
-    for k, (source, target) in enumerate(pairs):
+
+    def row(k: int) -> dict:
+        source, target = pairs[k]
         if task.pours:
             containers = {"source_objects": [source], "target_objects": [target]}
         else:
             containers = {"objects": [source]}
-        env = make(env_id, **containers, **(env_kwargs or {}))
+        # Threads of its own per row: one for each row's fluid (the same particles on any
+        # number of threads), unless the caller chose.
+        threads = {"num_threads": 1} if workers > 1 else {}
+        env = make(env_id, **containers, **{**threads, **(env_kwargs or {})})
+        # A row of its own: a policy's state (the expert's flow estimate) is per episode.
+        acting = copy.deepcopy(policy) if workers > 1 else policy
         metrics, last = [], []
         for ep in range(episodes):  # the bar counts episodes, as its total does
-            episode = rollout(env, policy, seed=seed + k * episodes + ep, keep_infos=task.pours)
+            episode = rollout(env, acting, seed=seed + k * episodes + ep, keep_infos=task.pours)
             metrics.append(
                 {
                     **episode.metrics(task),
@@ -183,16 +210,20 @@ def evaluate_policy(
             last.append(episode.info)
             bar.update()
         env.close()
-        rows.append(
-            {
-                "object": source if source == target else f"{source} -> {target}",
-                "source": source,
-                "target": target if task.pours else None,
-                "trained_on": source in trained and (target in trained or not task.pours),
-                **mean_metrics(metrics),
-                **task.outcome_shares(last),
-            }
-        )
+        return {
+            "object": source if source == target else f"{source} -> {target}",
+            "source": source,
+            "target": target if task.pours else None,
+            "trained_on": source in trained and (target in trained or not task.pours),
+            **mean_metrics(metrics),
+            **task.outcome_shares(last),
+        }
+
+    if workers == 1:
+        rows = [row(k) for k in range(len(pairs))]
+    else:
+        with ThreadPoolExecutor(min(workers, len(pairs)), "pour-gym evaluate") as pool:
+            rows = list(pool.map(row, range(len(pairs))))
     bar.close()
     profile = ("pour_seconds", "peak_flow") if task.pours else ()
     keys = (*task.metric_names, *profile, *(f"outcome_{name}" for name in task.outcomes))
@@ -201,6 +232,13 @@ def evaluate_policy(
     if unseen and len(unseen) < len(rows):
         mean["success_unseen"] = float(np.mean([r["success"] for r in unseen]))
     return {"env": env_id, "episodes": episodes, "seed": seed, "rows": rows, "mean": mean}
+
+
+def samples(policy: Callable) -> bool:
+    """Whether a policy samples its actions (alone, or as a residual's learner)."""
+    return isinstance(policy, SampledPolicy) or isinstance(
+        getattr(policy, "learner", None), SampledPolicy
+    )
 
 
 def evaluation_table(result: dict) -> str:

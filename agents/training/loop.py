@@ -7,7 +7,7 @@ import json
 import shutil
 import time
 
-from pour_gym.agents.evaluation.evaluate import evaluate_policy, evaluation_table
+from pour_gym.agents.evaluation.evaluate import evaluate_policy, evaluation_table, samples
 from pour_gym.agents.policies.rollout import sb3_policy
 from pour_gym.agents.training.config import TrainConfig, algorithm
 from pour_gym.agents.training.curves import (
@@ -32,6 +32,7 @@ from pour_gym.agents.training.warm_start import start_from_demonstrations
 from pour_gym.assets import expand_containers
 from pour_gym.envs import ENV_IDS, entry, task_of
 from pour_gym.errors import InputError
+from pour_gym.io.numba_threads import usable_cores
 
 
 def env_arguments(config: TrainConfig, recipe: Recipe) -> dict:
@@ -215,14 +216,17 @@ def train(config: TrainConfig) -> dict:
     scored = "sampled actions" if config.stochastic_eval else "mean action"
     plot_curve(out, f"{config.env}, {config.algo}, {config.obs_mode}, {config.objects} ({scored})")
     run = load_run(out / "model.zip")
+    policy = sb3_policy(run)
     result = evaluate_policy(
-        sb3_policy(run),
+        policy,
         config.env,
         eval_objects,
         config.eval_episodes,
         seed=config.eval_seed,
         env_kwargs=arguments,
         trained_on=train_objects,
+        # The training is over: its cores evaluate the containers at once (the same result).
+        workers=1 if samples(policy) else usable_cores(),
     )
     result.update(model=str(out / "model.zip"), timesteps=config.timesteps, algo=config.algo,
                   train_seconds=train_seconds, resumed_from=done, best_point=kept)  # fmt: skip

@@ -104,6 +104,7 @@ def cmd_evaluate(args: argparse.Namespace) -> Output:
             trained_on=trained,
             source_objects=expand_containers(args.source_objects) if args.source_objects else None,
             target_objects=expand_containers(args.target_objects) if args.target_objects else None,
+            workers=args.workers,
         )
 
     if args.liquids:

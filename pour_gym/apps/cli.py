@@ -290,6 +290,13 @@ def build_parser() -> argparse.ArgumentParser:
         help="comma-separated liquids (water,milk,oil,syrup,honey): every container with "
         "each, the same episodes, and a row per liquid",
     )
+    p.add_argument(
+        "--workers",
+        type=int,
+        default=1,
+        help="containers evaluated at once, in threads of one process (the same results for "
+        "any number; 2 uses both cores of a 2-core machine); not with sampled actions",
+    )
 
     p = add(
         "search",
