@@ -191,8 +191,8 @@ def evaluate_policy(
             containers = {"source_objects": [source], "target_objects": [target]}
         else:
             containers = {"objects": [source]}
-        # Threads of its own per row: one for each row's fluid (the same particles on any
-        # number of threads), unless the caller chose.
+        # With workers, each row's fluid on one thread (its particles are the same on any
+        # number), unless the caller chose.
         threads = {"num_threads": 1} if workers > 1 else {}
         env = make(env_id, **containers, **{**threads, **(env_kwargs or {})})
         # A row of its own: a policy's state (the expert's flow estimate) is per episode.
