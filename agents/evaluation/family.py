@@ -74,6 +74,8 @@ def family_study(
     seed: int = STUDY_SEED,
     perceptions: tuple[str, ...] = ("true",),
     scan_seed: int = 0,
+    liquids: str | None = None,
+    workers: int = 1,
 ) -> dict:
     """Evaluate each policy on every usable member of a family; group by shape.
 
@@ -87,14 +89,21 @@ def family_study(
             ``"true"`` (the labelled member) and ``"scan"`` (perceived: scanned,
             reconstructed and labelled by warping; :mod:`pour_gym.perception`).
         scan_seed: the scans' noise seed.
+        liquids: comma-separated liquid presets (``"water,syrup,honey"``): each policy
+            pours every member with each, the same episodes; None for the policy's own
+            liquid (water unless its config says otherwise).
+        workers: members evaluated at once, in threads (the same results for any number;
+            :func:`~pour_gym.agents.evaluation.evaluate.evaluate_policy`).
 
     Returns:
-        ``{"family", "episodes", "seed", "scan_seed", "refused": [...],
-        "refused_perception": [...], "policies": {label: {"policy", "perception", "env",
-        "mean": {success, success_interval, amount_error, spilled}, "members": [rows with
-        "spec"], "buckets": by_bucket(...)}}}``; a row with perceived features is labelled
-        ``"<policy> (perceived)"``.
+        ``{"family", "episodes", "seed", "scan_seed", "liquids", "refused": [...],
+        "refused_perception": [...], "policies": {label: {"policy", "perception",
+        "liquid", "env", "mean": {success, success_interval, amount_error, spilled},
+        "members": [rows with "spec"], "buckets": by_bucket(...)}}}``; a row with
+        perceived features is labelled ``"<policy> (perceived)"``, a row with a liquid
+        asked for ``"<policy> [<liquid>]"``.
     """
+    from pour_gym.fluid.liquid import liquids_of
     from pour_gym.perception import PERCEPTIONS
 
     if episodes < 1:
@@ -102,32 +111,40 @@ def family_study(
     unknown = sorted(set(perceptions) - set(PERCEPTIONS))
     if unknown or not perceptions:
         raise InputError(f"--perception takes {', '.join(PERCEPTIONS)}, not {unknown or 'none'}")
+    # Unknown names fail here, before any episode; None keeps each policy's own liquid.
+    named = [x.name for x in liquids_of(liquids)] if liquids else [None]
     usable, refused = usable_members(family)
     if not usable:
         raise InputError(f"every member of {family} was refused: {refused[0]['reason']}")
     doc: dict = {"family": family, "episodes": episodes, "seed": seed, "scan_seed": scan_seed,
-                 "refused": refused, "refused_perception": []}  # fmt: skip
+                 "liquids": named if liquids else [], "refused": refused,
+                 "refused_perception": []}  # fmt: skip
     # Each loaded once, and before the scans: a bad name fails now, not after them.
     loaded_policies = {name: load_policy(name) for name in policies}
     members = {"true": usable}
     if "scan" in perceptions:
         members["scan"], doc["refused_perception"] = perceivable_members(usable, scan_seed)
     doc["policies"] = {}
-    for name, perception in [(n, p) for n in policies for p in perceptions]:
+    for name, perception, liquid in [(n, p, q) for n in policies for p in perceptions
+                                      for q in named]:  # fmt: skip
         loaded = loaded_policies[name]
         kwargs = {**loaded.env_kwargs, "perception": perception, "scan_seed": scan_seed}
+        if liquid is not None:
+            kwargs["liquid"] = liquid
         result = evaluate_policy(
             loaded.policy, loaded.env_id, members[perception], episodes, seed=seed,
-            env_kwargs=kwargs, trained_on=loaded.trained_on,
+            env_kwargs=kwargs, trained_on=loaded.trained_on, workers=workers,
         )  # fmt: skip
         rows, buckets = member_buckets(result["rows"], episodes)
         n = len(rows) * episodes
         mean = {key: float(np.mean([r[key] for r in rows])) for key in VALUES}
         mean["success_interval"] = wilson_interval(mean["success"] * n, n)
         label = name if perception == "true" else f"{name} (perceived)"
+        if liquid is not None:
+            label += f" [{liquid}]"
         doc["policies"][label] = {
-            "policy": name, "perception": perception, "env": loaded.env_id, "mean": mean,
-            "members": rows, "buckets": buckets,
+            "policy": name, "perception": perception, "liquid": liquid, "env": loaded.env_id,
+            "mean": mean, "members": rows, "buckets": buckets,
         }  # fmt: skip
     return doc
 
@@ -148,7 +165,8 @@ def plot_family_study(doc: dict, path: str | Path) -> Path:
         buckets = list(next(iter(doc["policies"].values()))["buckets"][parameter])
         for k, name in enumerate(names):
             groups = doc["policies"][name]["buckets"][parameter]
-            x = np.arange(len(buckets)) + (k - (len(names) - 1) / 2) * 0.15
+            # Side by side within a bucket's slot, however many rows (policies x liquids).
+            x = np.arange(len(buckets)) + (k - (len(names) - 1) / 2) * min(0.15, 0.8 / len(names))
             # A bucket may be empty for a policy that saw fewer members (refused scans).
             shown = [i for i, b in enumerate(buckets) if b in groups]
             x = x[shown]
@@ -179,19 +197,23 @@ def write_family_study(doc: dict, out: str | Path) -> Path:
 
 
 def family_study_report(doc: dict) -> str:
-    """Markdown of :func:`family_study`: one row per policy, then each policy's buckets."""
+    """Markdown of :func:`family_study`: one row per policy, then each policy's buckets.
+
+    A study over liquids has a row per policy and liquid, and a section with a column per
+    liquid (:func:`liquids_pivot`).
+    """
     rows = []
     for name, p in doc["policies"].items():
         m = p["mean"]
-        lo, hi = m["success_interval"]
         rows.append([f"`{name}`", p["env"], p.get("perception", "true"), str(len(p["members"])),
-                     f"{m['success']:.2f} [{lo:.2f}, {hi:.2f}]", f"{m['amount_error']:.1f}",
+                     _success_cell(m), f"{m['amount_error']:.1f}",
                      f"{m['spilled']:.2f}"])  # fmt: skip
+    asked = f" --liquids {','.join(doc['liquids'])}" if doc.get("liquids") else ""
     lines = [
         f"# Generalisation over {doc['family']}",
         "",
-        f"Written by `pour-gym report generalisation --family {doc['family']}`: each policy "
-        f"pours from every container it takes into itself, {doc['episodes']} episodes each "
+        f"Written by `pour-gym report generalisation --family {doc['family']}{asked}`: each "
+        f"policy pours from every container it takes into itself, {doc['episodes']} episodes each "
         f"at seeds {doc['seed']}+ (never used in training). Success is the share of episodes "
         "that ended with the target amount within tolerance, nothing spilled and the source "
         "upright; brackets hold a 95 % Wilson interval over the episodes. Amount error is "
@@ -205,9 +227,11 @@ def family_study_report(doc: dict) -> str:
             rows,
             align="lllrrrr",
         ),
-        "",
-        "![success by shape](success.png)",
     ]
+    if doc.get("liquids"):
+        lines += ["", "By liquid (each cell: success [95 % interval]; amount error; spilled, "
+                  "in particles per episode):", "", liquids_pivot(doc)]  # fmt: skip
+    lines += ["", "![success by shape](success.png)"]
     refused = doc["refused"]
     lines += ["", f"Refused by the labelling or the environments: {len(refused)}."]
     lines += [f"- `{r['name']}`: {r['reason']}" for r in refused]
@@ -219,6 +243,38 @@ def family_study_report(doc: dict) -> str:
     for name, p in doc["policies"].items():
         lines += ["", f"## `{name}` by shape", "", bucket_tables(p["buckets"], VALUES)]
     return "\n".join(lines) + "\n"
+
+
+def _success_cell(mean: dict) -> str:
+    """``0.95 [0.92, 0.98]``: a success rate with its 95 % Wilson interval."""
+    lo, hi = mean["success_interval"]
+    return f"{mean['success']:.2f} [{lo:.2f}, {hi:.2f}]"
+
+
+def liquids_pivot(doc: dict) -> str:
+    """Markdown of a study over liquids: a row per policy (and features), a column per liquid.
+
+    Each cell is the success over the family with its 95 % Wilson interval, then the mean
+    amount error and spill in particles, so that one liquid's cost to a policy reads along
+    its row.
+    """
+    liquids = doc["liquids"]
+    cells: dict[tuple[str, str], dict[str, dict]] = {}
+    for p in doc["policies"].values():
+        key = (p["policy"], p.get("perception", "true"))
+        cells.setdefault(key, {})[p["liquid"]] = p["mean"]
+    rows = []
+    for (policy, perception), by_liquid in cells.items():
+        row = [f"`{policy}`", perception]
+        for liquid in liquids:
+            m = by_liquid.get(liquid)
+            row.append(
+                "-" if m is None
+                else f"{_success_cell(m)}; {m['amount_error']:.1f}; {m['spilled']:.2f}"
+            )  # fmt: skip
+        rows.append(row)
+    header = ["policy", "features", *(f"{q}: success; error; spilled" for q in liquids)]
+    return markdown_table(header, rows, align="ll" + "r" * len(liquids))
 
 
 def family_warping(family: str) -> dict:

@@ -140,6 +140,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--seed", type=int, default=60_000, help="generalisation --family: first episode's seed"
     )
+    p.add_argument(
+        "--liquids",
+        help="generalisation --family: comma-separated liquids (water,milk,oil,syrup,honey): "
+        "each policy pours every member with each, the same episodes; a column per liquid",
+    )
+    p.add_argument(
+        "--workers",
+        type=int,
+        default=1,
+        help="generalisation --family: members evaluated at once, in threads (the same "
+        "results for any number; not with sampled actions)",
+    )
 
     p = add(
         "label",

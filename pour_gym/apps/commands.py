@@ -224,7 +224,7 @@ def cmd_report(args: argparse.Namespace) -> Output:
         policies = [name for name in args.policies.split(",") if name]
         perceptions = tuple(p for p in args.perception.split(",") if p)
         doc = family_study(args.family, policies, args.episodes, args.seed, perceptions,
-                           args.scan_seed)  # fmt: skip
+                           args.scan_seed, args.liquids, args.workers)  # fmt: skip
         out = write_family_study(doc, args.out)
         return (doc, lambda: (out / "report.md").read_text())
     if args.what == "sensors":
