@@ -239,3 +239,17 @@ def test_the_committed_report_is_what_the_committed_summaries_give(tmp_path):
              "curves": tmp_path / "baselines" / "curves.png"}  # fmt: skip
     baselines_report([], **paths)
     assert paths["report"].read_text() == (docs / "baselines.md").read_text()
+
+
+def test_what_a_row_is_scored_on_names_the_kind_of_container():
+    """A user's mesh file is not a catalogue container: the column says which is which."""
+    from pour_gym.agents.evaluation.baselines import scored_on
+
+    def rows(*names):
+        return [{"object": n, "trained_on": n == "red_cup"} for n in names]
+
+    assert scored_on(rows("red_cup", "broad_cup", "ycb_mug")) == "catalogue (2)"
+    assert scored_on(rows("procedural:test#0", "procedural:test#7")) == "procedural:test (2)"
+    assert scored_on(rows("/tmp/thin_cup.stl")) == "user meshes (1)"
+    mixed = rows("broad_cup", "procedural:test#0", "/home/u/cup.obj")
+    assert scored_on(mixed) == "procedural:test + catalogue + user meshes (3)"

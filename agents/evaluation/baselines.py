@@ -24,6 +24,7 @@ from __future__ import annotations
 import csv
 import json
 import os
+import re
 from pathlib import Path
 from typing import NamedTuple
 
@@ -126,13 +127,25 @@ def scored_on(rows: list[dict]) -> str:
     """What a summary's unseen metrics are over, as the report's column says it.
 
     ``"procedural:test (100)"`` when every unseen container is a member of one family,
-    else ``"catalogue (11)"``: how many containers, and which kind.
+    ``"catalogue (11)"`` when every one is a catalogue container, ``"user meshes (2)"``
+    when every one is a user's file, else the kinds joined (``"catalogue + user meshes
+    (14)"``): how many containers, and which kind.
     """
+    from pour_gym.assets import CATALOGUE
+
     unseen = sorted({r["object"] for r in rows if not r["trained_on"]})
-    families = {name.split("#")[0] for name in unseen}
+    families = {name.split("#")[0] for name in unseen if "#" in name}
     if len(families) == 1 and all("#" in name for name in unseen):
         return f"{families.pop()} ({len(unseen)})"
-    return f"catalogue ({len(unseen)})"
+    kinds = []
+    if any("#" in name for name in unseen):
+        kinds.append(" + ".join(sorted(families)))
+    if any(name in CATALOGUE for name in unseen):
+        kinds.append("catalogue")
+    # Neither a member nor a catalogue name: a mesh file or asset folder of the user's.
+    if any("#" not in name and name not in CATALOGUE for name in unseen):
+        kinds.append("user meshes")
+    return f"{' + '.join(kinds)} ({len(unseen)})"
 
 
 def run_summary(run_dir: Path) -> dict:
@@ -269,7 +282,8 @@ def reference_summary(eval_path: Path, trained_on: tuple[str, ...] = ("red_cup",
     env = result["env"]
     where = scored_on(rows)
     # One reference per env and set of containers: the catalogue's keeps its old name.
-    suffix = "" if where.startswith("catalogue") else "-" + where.split()[0].replace(":", "-")
+    kind_of = where.rsplit(" (", 1)[0]
+    suffix = "" if kind_of == "catalogue" else "-" + re.sub(r"[^a-z0-9]+", "-", kind_of.lower())
     return {
         "run": f"{prefix}-{env.split('/')[-1].lower()}{suffix}",
         "env": env,
