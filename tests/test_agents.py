@@ -6,6 +6,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import gymnasium as gym
 import numpy as np
 import pytest
 
@@ -802,3 +803,91 @@ def test_an_algo_schedule_sets_ppo_target_kl_by_step_null_running_every_epoch():
     sac = SAC("MlpPolicy", "Pendulum-v1", learning_starts=0, seed=0, device="cpu")
     with pytest.raises(InputError, match="SAC does not have"):
         sac.learn(4, callback=schedule_callback(schedule))
+
+
+class _Coin(gym.Env):
+    """Four-step episodes that succeed or not as told: SB3's training success, set."""
+
+    observation_space = gym.spaces.Box(-1.0, 1.0, (1,), np.float32)
+    action_space = gym.spaces.Box(-1.0, 1.0, (1,), np.float32)
+
+    def __init__(self, succeed: bool) -> None:
+        self.succeed, self.t = succeed, 0
+
+    def reset(self, *, seed=None, options=None):
+        super().reset(seed=seed)
+        self.t = 0
+        return np.zeros(1, np.float32), {}
+
+    def step(self, action):
+        self.t += 1
+        done = self.t == 4
+        return np.zeros(1, np.float32), 0.0, done, False, {"is_success": self.succeed and done}
+
+
+def test_a_switch_point_takes_effect_when_the_training_success_reaches_the_level(tmp_path):
+    """switch {success, earliest, latest}: a schedule's ``switch`` point waits for SB3's
+    training success over 100 episodes to reach the level (from ``earliest``), or for
+    ``latest``; where it fired is kept for a resumed run; bad recipes refused by name."""
+    from stable_baselines3 import PPO
+
+    from pour_gym.agents.training.recipes import load_recipe
+    from pour_gym.agents.training.schedule import (
+        StepSchedule,
+        SuccessSwitch,
+        SwitchState,
+        schedule_callback,
+        switch_callback,
+    )
+
+    schedule = StepSchedule.from_recipe(
+        "algo_schedule", {"target_kl": [[0, None], ["switch", 1e-12]]}
+    )
+    assert schedule.switched and schedule.point(10**9) == (0, None)  # waits for the switch
+    assert schedule.point(99, switch_at=100) == (0, None)
+    assert schedule.point(100, switch_at=100) == (100, 1e-12)
+    assert schedule.to_dict() == {"target_kl": [[0, None], ["switch", 1e-12]]}
+    for bad in ([["switch", 1.0]], [[0, 1.0], ["switch", 2.0], ["switch", 3.0]]):
+        with pytest.raises(InputError, match="algo_schedule"):
+            StepSchedule.from_recipe("algo_schedule", {"target_kl": bad})
+    switch = SuccessSwitch.from_recipe({"success": 0.5, "earliest": 256, "latest": 4096})
+    for bad in ({"success": 0, "earliest": 0, "latest": 1}, {"success": 0.5, "earliest": 9,
+                "latest": 8}, {"success": 0.5}, 0.3):  # fmt: skip
+        with pytest.raises(InputError, match="switch is"):
+            SuccessSwitch.from_recipe(bad)
+    late = StepSchedule.from_recipe("algo_schedule", {"target_kl": [[0, None], ["switch", 0.1],
+                                                                    [1000, 0.2]]})  # fmt: skip
+    with pytest.raises(InputError, match="could pass"):
+        switch.check(late)  # 1000 is before the switch's latest, 4096
+    with pytest.raises(InputError, match="needs a"):
+        schedule_callback(schedule)
+
+    def run(succeed: bool, out, switch=switch):
+        state = SwitchState()
+        model = PPO("MlpPolicy", _Coin(succeed), n_steps=64, batch_size=64, n_epochs=1,
+                    seed=0, device="cpu")  # fmt: skip
+        callbacks = [switch_callback(switch, state, out), schedule_callback(schedule, state)]
+        model.learn(1024, callback=callbacks)
+        return model, state
+
+    (tmp_path / "yes").mkdir(), (tmp_path / "no").mkdir()
+    model, state = run(True, tmp_path / "yes")
+    # 100 four-step episodes: the window is full at step 400, the first rollout from it
+    # starts at 448.
+    assert (state.step, state.success) == (448, 1.0) and model.target_kl == 1e-12
+    kept = SwitchState.load(tmp_path / "yes")
+    assert (kept.step, kept.success) == (448, 1.0)
+    assert SwitchState.load(tmp_path / "no").step is None
+    model, state = run(False, tmp_path / "no")
+    assert state.step is None and model.target_kl is None  # never successful, not yet late
+    model, state = run(False, tmp_path / "no", SuccessSwitch(0.5, 256, 512))
+    assert (state.step, state.success) == (512, 0.0) and model.target_kl == 1e-12  # late
+    # Recipes: a switch needs a point at it, and a point at it a switch.
+    with pytest.raises(InputError, match="would change nothing"):
+        load_recipe("PourGym/Pour-v2", "ppo", PPO, {"switch": {"success": 0.3, "earliest": 1,
+                    "latest": 2}}, "family-schedule")  # fmt: skip
+    with pytest.raises(InputError, match="no switch"):
+        load_recipe("PourGym/Pour-v2", "ppo", PPO, {"switch": None}, "family-switch")
+    recipe = load_recipe("PourGym/Pour-v2", "ppo", PPO, {}, "family-switch")
+    assert recipe.switch == SuccessSwitch(0.3, 300_000, 800_000)
+    assert recipe.env_schedule.point(500_000, switch_at=400_000) == (400_000, 20.0)

@@ -26,7 +26,7 @@ from pour_gym.agents.training.runs import (
     load_run,
     save_normaliser,
 )
-from pour_gym.agents.training.schedule import schedule_callback
+from pour_gym.agents.training.schedule import SwitchState, schedule_callback, switch_callback
 from pour_gym.agents.training.vector import training_vec_env
 from pour_gym.agents.training.warm_start import start_from_demonstrations
 from pour_gym.assets import expand_containers
@@ -131,6 +131,7 @@ def train(config: TrainConfig) -> dict:
         ),
         "env_schedule": recipe.env_schedule.to_dict() if recipe.env_schedule else None,
         "algo_schedule": recipe.algo_schedule.to_dict() if recipe.algo_schedule else None,
+        "switch": recipe.switch.to_dict() if recipe.switch else None,
         # What the environments were made with (recipe and run): evaluate uses it.
         "env_kwargs": arguments,
     }
@@ -145,7 +146,7 @@ def train(config: TrainConfig) -> dict:
     if checkpoint is None:
         # A fresh run owns its curves: a folder trained into before (a shipped model's, say)
         # must not lend it old points.
-        for stale in ("curve.csv", "bc_curve.csv", f"{BEST}/point.json"):
+        for stale in ("curve.csv", "bc_curve.csv", f"{BEST}/point.json", SwitchState.FILE):
             (out / stale).unlink(missing_ok=True)
         model = cls(recipe.policy, venv, seed=config.seed, verbose=0, device="cpu",
                     **algorithm_arguments(params))  # fmt: skip
@@ -191,9 +192,14 @@ def train(config: TrainConfig) -> dict:
                                        env_kwargs)  # fmt: skip
         if recipe.noise_schedule is not None:
             callbacks.callbacks.append(noise_callback(recipe.noise_schedule, config.timesteps))
+        # Where a resumed run's switch fired (none for a fresh run: removed above).
+        switched = SwitchState.load(out) if recipe.switch else None
+        if recipe.switch is not None:
+            # Before the schedules': they read where it fired at the same rollout's start.
+            callbacks.callbacks.append(switch_callback(recipe.switch, switched, out))
         for schedule in (recipe.env_schedule, recipe.algo_schedule):
             if schedule is not None:
-                callbacks.callbacks.append(schedule_callback(schedule))
+                callbacks.callbacks.append(schedule_callback(schedule, switched))
         model.learn(remaining, callback=callbacks, reset_num_timesteps=checkpoint is None)
         # The finished run is a checkpoint too: running the command again only evaluates.
         model.save(ckpt_dir / f"model_{model.num_timesteps}_steps.zip")

@@ -25,7 +25,7 @@ import yaml
 
 from pour_gym.agents.training.moved_modules import importable_old_paths
 from pour_gym.agents.training.noise import NoiseSchedule
-from pour_gym.agents.training.schedule import SCHEDULABLE, StepSchedule
+from pour_gym.agents.training.schedule import SCHEDULABLE, StepSchedule, SuccessSwitch
 from pour_gym.errors import InputError
 
 if TYPE_CHECKING:  # the residual module loads the envs (pybullet): only when a recipe has one
@@ -45,6 +45,8 @@ RECIPE_KEYS = {
     "noise_schedule": "shrink the action noise over the run's end (see NoiseSchedule)",
     "env_schedule": "an env argument changed at step counts: a curriculum (see StepSchedule)",
     "algo_schedule": "an algorithm's argument changed at step counts (see StepSchedule)",
+    "switch": "when the schedules' 'switch' points take effect: a training success reached "
+    "(see SuccessSwitch)",
 }
 RESIDUAL_WRAPPER = "pour_gym.agents.policies.residual.ExpertResidual"
 
@@ -100,8 +102,8 @@ class Recipe:
     Attributes:
         hyperparameters: the algorithm's constructor arguments.
         n_envs, policy, normalize, env_kwargs, env_wrapper, torch_threads, demonstrations,
-            stochastic_eval, residual, noise_schedule, env_schedule, algo_schedule: the
-            training's own keys (:data:`RECIPE_KEYS`).
+            stochastic_eval, residual, noise_schedule, env_schedule, algo_schedule, switch:
+            the training's own keys (:data:`RECIPE_KEYS`).
     """
 
     hyperparameters: dict
@@ -117,6 +119,7 @@ class Recipe:
     noise_schedule: NoiseSchedule | None = None
     env_schedule: StepSchedule | None = None
     algo_schedule: StepSchedule | None = None
+    switch: SuccessSwitch | None = None
 
     def wrapper(self) -> Callable[[gym.Env], gym.Env] | None:
         """A function that wraps an env in :attr:`env_wrapper`'s wrappers (None if none).
@@ -210,7 +213,23 @@ def load_recipe(
             key: StepSchedule.from_recipe(key, own[key]) if own.get(key) else None
             for key in SCHEDULABLE  # env_schedule, algo_schedule
         },
+        switch=SuccessSwitch.from_recipe(own["switch"]) if own.get("switch") else None,
     )
+    schedules = [x for x in (recipe.env_schedule, recipe.algo_schedule) if x is not None]
+    if recipe.switch is not None:
+        if not any(x.switched for x in schedules):
+            raise InputError(
+                "the recipe's switch would change nothing: give a schedule a point at it "
+                "(env_schedule: {max_tilt_rate: [[0, 60], [switch, 20]]}), or drop it "
+                "(--set switch=null)"
+            )
+        for x in schedules:
+            recipe.switch.check(x)
+    elif any(x.switched for x in schedules):
+        raise InputError(
+            "a schedule has a 'switch' point but the recipe no switch: add one (--set "
+            "'switch={success: 0.3, earliest: 300000, latest: 800000}')"
+        )
     scheduled = recipe.algo_schedule
     if scheduled and scheduled.name in (overrides or {}) and scheduled.points[0][0] == 0:
         # The schedule sets it before the first rollout: the run's value would go unused.

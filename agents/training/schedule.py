@@ -16,6 +16,19 @@ algorithm's attribute the same way::
 
     algo_schedule: {target_kl: [[0, null], [500000, 0.03]]}
 
+A point's step may be ``switch`` instead of a count: it takes effect when the recipe's
+``switch`` fires, at the first rollout from step ``earliest`` on at which SB3's training
+success (the share of the last 100 episodes that succeeded) has reached ``success``, or at
+step ``latest`` if it never does (:class:`SuccessSwitch`)::
+
+    switch: {success: 0.3, earliest: 300000, latest: 800000}
+    env_schedule: {max_tilt_rate: [[0, 60], [switch, 20]]}
+
+The three seeds of the step-500k switch ended in the order of their training success at
+the switch (0.14, 0.27, 0.14 gave 0.285, 0.405, 0.20 over the family), and the lineages
+switched from a policy at 0.30. The step it fired at is kept in the run's
+``switch.json``: a resumed run switches where the unbroken one did.
+
 Each value holds from its step count (env steps over the whole run, resumed parts
 included) to the next; before the first, the env's or the recipe's own. The callback sets
 it before each rollout (the update after the rollout uses it), so a resumed run is
@@ -27,9 +40,19 @@ curriculum.
 from __future__ import annotations
 
 import itertools
+import json
 from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
 
 from pour_gym.errors import InputError
+
+# A point's step that is the recipe's switch (SuccessSwitch), not a count.
+SWITCH = "switch"
+# Episodes SB3 keeps for its training success (ep_success_buffer): the switch waits for
+# them all, so that its first reading is not of a few lucky episodes.
+SUCCESS_WINDOW = 100
 
 # What a schedule may change, and why each can: an argument read only when the env or the
 # algorithm is made would be set in vain. Each: (what it is, whether null is a value).
@@ -53,12 +76,13 @@ class StepSchedule:
     Attributes:
         key: the recipe key (``env_schedule`` or ``algo_schedule``).
         name: what it sets (one of :data:`SCHEDULABLE` ``[key]``).
-        points: ``(from_step, value)`` pairs, their steps increasing.
+        points: ``(from_step, value)`` pairs, their steps increasing; a step may be
+            :data:`SWITCH` (once), the step at which the recipe's switch fires.
     """
 
     key: str
     name: str
-    points: tuple[tuple[int, float | None], ...]
+    points: tuple[tuple[int | str, float | None], ...]
 
     @classmethod
     def from_recipe(cls, key: str, value: dict) -> StepSchedule:
@@ -66,7 +90,8 @@ class StepSchedule:
 
         Raises:
             InputError: not one schedulable name, or its points not ``[[step, value], ...]``
-                with steps >= 0 increasing and values > 0 (or null where that is a value).
+                with steps >= 0 increasing (``switch`` at most once) and values > 0 (or
+                null where that is a value).
         """
         known = SCHEDULABLE[key]
         if not isinstance(value, dict) or len(value) != 1 or next(iter(value)) not in known:
@@ -78,13 +103,19 @@ class StepSchedule:
         nullable = known[name][1]
         try:
             points = tuple(
-                (int(step), None if v is None and nullable else float(v)) for step, v in given
+                (
+                    step if step == SWITCH else int(step),
+                    None if v is None and nullable else float(v),
+                )
+                for step, v in given
             )
         except (TypeError, ValueError):
             points = ()
-        steps = [step for step, _ in points]
+        steps = [step for step, _ in points if step != SWITCH]
         if (
             not points
+            or sum(step == SWITCH for step, _ in points) > 1
+            or points[0][0] == SWITCH
             or steps[0] < 0
             or any(b <= a for a, b in itertools.pairwise(steps))
             or not all(v is None or v > 0 for _, v in points)
@@ -92,14 +123,30 @@ class StepSchedule:
             null = " or null" if nullable else ""
             raise InputError(
                 f"{key}'s {name} needs [[from_step, value], ...] with steps >= 0 "
-                f"increasing and values > 0{null}, not {given!r}"
+                f"increasing (after a first count, one may be {SWITCH!r}) and values > "
+                f"0{null}, not {given!r}"
             )
         return cls(key, name, points)
 
-    def point(self, step: int) -> tuple[int, float | None] | None:
-        """The point in force at ``step`` (None before the first: the env's or recipe's own)."""
+    @property
+    def switched(self) -> bool:
+        """Whether a point waits for the recipe's switch."""
+        return any(step == SWITCH for step, _ in self.points)
+
+    def point(self, step: int, switch_at: int | None = None) -> tuple[int, float | None] | None:
+        """The point in force at ``step`` (None before the first: the env's or recipe's own).
+
+        Args:
+            step: env steps over the whole run.
+            switch_at: the step the switch fired at; None while it has not (its point and
+                those after it wait).
+        """
         now = None
         for start, v in self.points:
+            if start == SWITCH:
+                if switch_at is None:
+                    break
+                start = switch_at
             if step >= start:
                 now = (start, v)
         return now
@@ -109,15 +156,144 @@ class StepSchedule:
         return {self.name: [list(p) for p in self.points]}
 
 
-def schedule_callback(schedule: StepSchedule):
+@dataclass(frozen=True)
+class SuccessSwitch:
+    """A recipe's ``switch``: when its schedules' ``switch`` points take effect.
+
+    At the first rollout from step ``earliest`` on at which SB3's training success (the
+    share of the last :data:`SUCCESS_WINDOW` episodes that succeeded) is at least
+    ``success``; at step ``latest`` if it has not been by then.
+
+    Attributes:
+        success: the training success that switches, in (0, 1].
+        earliest: no switch before this step (env steps over the run).
+        latest: the switch at this step if the success has not switched it.
+    """
+
+    success: float
+    earliest: int
+    latest: int
+
+    @classmethod
+    def from_recipe(cls, value: dict) -> SuccessSwitch:
+        """From the recipe's ``switch`` mapping.
+
+        Raises:
+            InputError: not ``{success, earliest, latest}`` with 0 < success <= 1 and
+                0 <= earliest <= latest.
+        """
+        try:
+            made = cls(float(value["success"]), int(value["earliest"]), int(value["latest"]))
+            if set(value) != {"success", "earliest", "latest"}:
+                raise KeyError
+        except (TypeError, KeyError, ValueError):
+            made = None
+        if made is None or not 0 < made.success <= 1 or not 0 <= made.earliest <= made.latest:
+            raise InputError(
+                "switch is {success: S, earliest: STEP, latest: STEP} with 0 < S <= 1 (the "
+                f"training success that switches) and 0 <= earliest <= latest, not {value!r}"
+            )
+        return made
+
+    def check(self, schedule: StepSchedule) -> None:
+        """Refuse a schedule whose counted points could fall on the wrong side of the switch.
+
+        Raises:
+            InputError: a count before ``switch`` at or after ``earliest``, or one after it
+                at or before ``latest``.
+        """
+        steps = [step for step, _ in schedule.points]
+        if SWITCH not in steps:
+            return
+        at = steps.index(SWITCH)
+        if any(step >= self.earliest for step in steps[:at]) or any(
+            step <= self.latest for step in steps[at + 1 :]
+        ):
+            raise InputError(
+                f"{schedule.key}'s {schedule.name} has counts that the switch (from "
+                f"{self.earliest} to {self.latest}) could pass: counts before {SWITCH!r} "
+                f"must be under {self.earliest}, counts after it over {self.latest}"
+            )
+
+    def to_dict(self) -> dict:
+        """The recipe's form (for ``config.json``)."""
+        return {"success": self.success, "earliest": self.earliest, "latest": self.latest}
+
+
+class SwitchState:
+    """Where a run's switch fired: None until it does; kept in ``switch.json``.
+
+    Attributes:
+        step: the env step it fired at (None: not yet).
+        success: the training success it fired with (at ``latest``, over however many
+            episodes SB3 held; None if none had ended).
+    """
+
+    FILE = "switch.json"
+
+    def __init__(self, step: int | None = None, success: float | None = None) -> None:
+        self.step = step
+        self.success = success
+
+    @classmethod
+    def load(cls, out: Path) -> SwitchState:
+        """A resumed run's switch (not fired if the run has no ``switch.json``)."""
+        path = Path(out) / cls.FILE
+        if not path.is_file():
+            return cls()
+        doc = json.loads(path.read_text())
+        return cls(int(doc["step"]), doc["success"])
+
+    def save(self, out: Path) -> None:
+        """Write ``switch.json``."""
+        doc = {"step": self.step, "success": self.success}
+        (Path(out) / self.FILE).write_text(json.dumps(doc) + "\n")
+
+
+def switch_callback(switch: SuccessSwitch, state: SwitchState, out: Path):
+    """An SB3 callback that fires ``switch`` before a rollout, into ``state`` and ``out``.
+
+    Put it before the schedules' callbacks: they read ``state`` at the same rollout start.
+    """
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    class Switch(BaseCallback):
+        def _on_rollout_start(self) -> None:
+            step = self.num_timesteps
+            if state.step is not None or step < switch.earliest:
+                return
+            # SB3's record of the last episodes' is_success (emptied by a resume): read
+            # only once full, and kept at the latest however many it holds.
+            window = self.model.ep_success_buffer
+            success = float(np.mean(window)) if len(window) else None
+            full = len(window) >= SUCCESS_WINDOW
+            if step >= switch.latest or (full and success >= switch.success):
+                state.step, state.success = step, success
+                state.save(out)
+                self.logger.record("train/switch_step", step)
+
+        def _on_step(self) -> bool:
+            return True
+
+    return Switch()
+
+
+def schedule_callback(schedule: StepSchedule, switch: SwitchState | None = None):
     """An SB3 callback that sets ``schedule``'s value before each rollout.
 
     An ``env_schedule`` is set on every training env (through the wrappers; SubprocVecEnv's
-    workers and the native vector env alike), an ``algo_schedule`` on the model.
+    workers and the native vector env alike), an ``algo_schedule`` on the model. A
+    ``switch`` point takes effect from the step in ``switch`` (:func:`switch_callback`).
 
     Raises:
-        InputError: at the start of training, for envs or a model without the name.
+        InputError: at the start of training, for envs or a model without the name, or
+            for a schedule with a ``switch`` point given no switch.
     """
+    if schedule.switched and switch is None:
+        raise InputError(
+            f"{schedule.key}'s {schedule.name} has a {SWITCH!r} point: the recipe needs a "
+            "switch: {success: S, earliest: STEP, latest: STEP}"
+        )
     from stable_baselines3.common.callbacks import BaseCallback
 
     on_env = schedule.key == "env_schedule"
@@ -142,7 +318,7 @@ def schedule_callback(schedule: StepSchedule):
                 )
 
         def _on_rollout_start(self) -> None:
-            point = schedule.point(self.num_timesteps)
+            point = schedule.point(self.num_timesteps, switch.step if switch else None)
             if point is None or point == self.now:
                 return
             if on_env:
