@@ -291,6 +291,8 @@ def test_generalisation_study_over_liquids(cli, tmp_path):
     # peak rate (docs/liquids.md: 63 % of water's from the red cup).
     assert water["members"][0]["object"] == honey["members"][0]["object"]
     assert honey["members"][0]["peak_flow"] < 0.9 * water["members"][0]["peak_flow"]
+    assert honey["mean"]["pour_seconds"] > water["mean"]["pour_seconds"]  # and longer
     report = (out / "report.md").read_text()
     assert "--liquids water,honey" in report
     assert "water: success; error; spilled" in report and "honey: success" in report
+    assert "honey: pour, s; peak flow, T/s" in report

@@ -27,6 +27,10 @@ from pour_gym.errors import InputError
 from pour_gym.report.family import BINS, CATEGORIES, PARTS, bucket_tables, by_bucket, mean_of
 from pour_gym.report.tables import markdown_table
 
+# An evaluation row's pour profile: seconds the stream ran, its peak in target amounts per
+# second (pour_gym.envs.task.pour_profile).
+PROFILE = ("pour_seconds", "peak_flow")
+
 STUDY_SEED = 60_000  # the first evaluation seed (no training run uses 60000+)
 
 
@@ -137,7 +141,9 @@ def family_study(
         )  # fmt: skip
         rows, buckets = member_buckets(result["rows"], episodes)
         n = len(rows) * episodes
-        mean = {key: float(np.mean([r[key] for r in rows])) for key in VALUES}
+        # The pour's profile too (how long the stream ran, its peak): what a liquid changes.
+        keys = [*VALUES, *(k for k in PROFILE if all(k in r for r in rows))]
+        mean = {key: float(np.mean([r[key] for r in rows])) for key in keys}
         mean["success_interval"] = wilson_interval(mean["success"] * n, n)
         label = name if perception == "true" else f"{name} (perceived)"
         if liquid is not None:
@@ -256,7 +262,7 @@ def liquids_pivot(doc: dict) -> str:
 
     Each cell is the success over the family with its 95 % Wilson interval, then the mean
     amount error and spill in particles, so that one liquid's cost to a policy reads along
-    its row.
+    its row; a second table gives the pours' duration and peak flow the same way.
     """
     liquids = doc["liquids"]
     cells: dict[tuple[str, str], dict[str, dict]] = {}
@@ -274,7 +280,23 @@ def liquids_pivot(doc: dict) -> str:
             )  # fmt: skip
         rows.append(row)
     header = ["policy", "features", *(f"{q}: success; error; spilled" for q in liquids)]
-    return markdown_table(header, rows, align="ll" + "r" * len(liquids))
+    table = markdown_table(header, rows, align="ll" + "r" * len(liquids))
+    profiles = []
+    for (policy, perception), by_liquid in cells.items():
+        row = [f"`{policy}`", perception]
+        for liquid in liquids:
+            m = by_liquid.get(liquid) or {}
+            row.append(
+                f"{m['pour_seconds']:.2f}; {m['peak_flow']:.2f}"
+                if all(k in m for k in PROFILE) else "-"
+            )  # fmt: skip
+        profiles.append(row)
+    header = ["policy", "features", *(f"{q}: pour, s; peak flow, T/s" for q in liquids)]
+    profile_table = markdown_table(header, profiles, align="ll" + "r" * len(liquids))
+    return (
+        f"{table}\n\nThe pours (mean over the episodes: how long the stream ran, and its "
+        f"peak in target amounts per second):\n\n{profile_table}"
+    )
 
 
 def family_warping(family: str) -> dict:
