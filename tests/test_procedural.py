@@ -296,3 +296,4 @@ def test_generalisation_study_over_liquids(cli, tmp_path):
     assert "--liquids water,honey" in report
     assert "water: success; error; spilled" in report and "honey: success" in report
     assert "honey: pour, s; peak flow, T/s" in report
+    assert "| spilled | failures |" in report  # the failures by why, a column

@@ -253,12 +253,12 @@ def evaluation_table(result: dict) -> str:
         row = [r["object"] + (" *" if r["trained_on"] else ""), f"{r['success']:.2f}",
                f"{r['return']:.2f}"]  # fmt: skip
         if pours:
-            row += [f"{r['amount_error']:.1f}", f"{r['spilled']:.1f}", *_profile(r), _failures(r)]
+            row += [f"{r['amount_error']:.1f}", f"{r['spilled']:.1f}", *_profile(r), failures_of(r)]
         rows.append(row)
     m = result["mean"]
     last = ["**mean**", f"**{m['success']:.2f}**", f"{m['return']:.2f}"]
     if pours:
-        last += [f"{m['amount_error']:.1f}", f"{m['spilled']:.2f}", *_profile(m), _failures(m)]
+        last += [f"{m['amount_error']:.1f}", f"{m['spilled']:.2f}", *_profile(m), failures_of(m)]
     lines = [markdown_table(header, [*rows, last], align="l" + "r" * (len(header) - 1))]
     if "success_unseen" in m:
         lines.append(f"\nsuccess on containers never trained on: {m['success_unseen']:.2f}")
@@ -292,7 +292,7 @@ def liquids_table(result: dict) -> str:
         m = res["mean"]
         row = [name, f"{m['success']:.2f}", f"{m['return']:.2f}"]
         if pours:
-            row += [f"{m['amount_error']:.1f}", f"{m['spilled']:.2f}", *_profile(m), _failures(m)]
+            row += [f"{m['amount_error']:.1f}", f"{m['spilled']:.2f}", *_profile(m), failures_of(m)]
         rows.append(row)
     parts = [markdown_table(header, rows, align="l" + "r" * (len(header) - 1))]
     for name, res in result["by_liquid"].items():
@@ -307,7 +307,7 @@ def _profile(row: dict) -> list[str]:
     return [f"{row['pour_seconds']:.1f}", f"{row['peak_flow']:.2f}"]
 
 
-def _failures(row: dict) -> str:
+def failures_of(row: dict) -> str:
     """A row's failed episodes by outcome, e.g. ``spilled 0.2, overshot 0.1``.
 
     Results from before outcomes were recorded give ``-``.

@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from pour_gym.agents.evaluation.aggregate import wilson_interval
-from pour_gym.agents.evaluation.evaluate import evaluate_policy, load_policy
+from pour_gym.agents.evaluation.evaluate import evaluate_policy, failures_of, load_policy
 from pour_gym.agents.evaluation.shapes import VALUES, member_buckets
 from pour_gym.errors import InputError
 from pour_gym.report.family import BINS, CATEGORIES, PARTS, bucket_tables, by_bucket, mean_of
@@ -30,6 +30,9 @@ from pour_gym.report.tables import markdown_table
 # An evaluation row's pour profile: seconds the stream ran, its peak in target amounts per
 # second (pour_gym.envs.task.pour_profile).
 PROFILE = ("pour_seconds", "peak_flow")
+# The study's table: a row per policy (and features, and liquid).
+STUDY_HEADER = ["policy", "env", "features", "containers", "success", "amount error", "spilled",
+                "failures"]  # fmt: skip
 
 STUDY_SEED = 60_000  # the first evaluation seed (no training run uses 60000+)
 
@@ -165,8 +168,22 @@ def plot_family_study(doc: dict, path: str | Path) -> Path:
     from pour_gym.report.pictures import save_figure
 
     parameters = (*CATEGORIES, *BINS)
-    fig, axes = plt.subplots(1, len(parameters), figsize=(3.0 * len(parameters), 3.6), sharey=True)
     names = list(doc["policies"])
+    # A colour per policy and a marker per liquid: a study over liquids has a dozen rows.
+    policies = list(dict.fromkeys(p["policy"] for p in doc["policies"].values()))
+    liquids = doc.get("liquids") or [None]
+    style = {
+        name: {"color": f"C{policies.index(p['policy']) % 10}",
+               "marker": "os^Dv"[liquids.index(p.get("liquid")) % 5] if p.get("liquid") else "o",
+               "mfc": None if p.get("perception", "true") == "true" else "none"}
+        for name, p in doc["policies"].items()
+    }  # fmt: skip
+    if len(names) == len(policies):  # one row per policy: the default cycle, as before
+        style = {name: {"fmt": "o"} for name in names}
+    legend_rows = -(-len(names) // 4)
+    fig, axes = plt.subplots(
+        1, len(parameters), figsize=(3.0 * len(parameters), 3.6 + 0.25 * legend_rows), sharey=True
+    )
     for ax, parameter in zip(axes, parameters, strict=True):
         buckets = list(next(iter(doc["policies"].values()))["buckets"][parameter])
         for k, name in enumerate(names):
@@ -181,15 +198,19 @@ def plot_family_study(doc: dict, path: str | Path) -> Path:
             # Clipped at 0: a mean of per-container rates may differ from the interval's
             # count-based rate in its last bit.
             yerr = np.maximum([y - lo_hi[:, 0], lo_hi[:, 1] - y], 0.0)
-            ax.errorbar(x, y, yerr=yerr, fmt="o", capsize=3, label=name)
+            ax.errorbar(x, y, yerr=yerr, capsize=3, label=name, linestyle="none", **style[name])
         ax.set_xticks(np.arange(len(buckets)), buckets, rotation=45, ha="right", fontsize=8)
         ax.set_title(parameter.replace("_", " "))
         ax.set_ylim(-0.05, 1.05)
         ax.grid(alpha=0.3)
     axes[0].set_ylabel("success (95 % Wilson interval)")
-    axes[0].legend(fontsize=8, loc="lower left")
     fig.suptitle(f"{doc['family']}: success by shape, {doc['episodes']} episodes per container")
-    return save_figure(fig, path, dpi=90)
+    fig.tight_layout()
+    # Below the panels, not over one: a panel of one policy's points hides under a dozen.
+    handles, labels = axes[0].get_legend_handles_labels()
+    fig.subplots_adjust(bottom=0.3 + 0.06 * legend_rows)
+    fig.legend(handles, labels, loc="lower center", ncol=min(len(names), 4), fontsize=8)
+    return save_figure(fig, path, dpi=90, tight=False)
 
 
 def write_family_study(doc: dict, out: str | Path) -> Path:
@@ -211,9 +232,13 @@ def family_study_report(doc: dict) -> str:
     rows = []
     for name, p in doc["policies"].items():
         m = p["mean"]
+        # The failures by why, over the members' rows (studies from before outcomes: "-").
+        # In the rows' own order (the env's outcomes'), so the cell reads the same each run.
+        keys = dict.fromkeys(k for r in p["members"] for k in r if k.startswith("outcome_"))
+        outcomes = {k: float(np.mean([r.get(k, 0.0) for r in p["members"]])) for k in keys}
         rows.append([f"`{name}`", p["env"], p.get("perception", "true"), str(len(p["members"])),
                      _success_cell(m), f"{m['amount_error']:.1f}",
-                     f"{m['spilled']:.2f}"])  # fmt: skip
+                     f"{m['spilled']:.2f}", failures_of(outcomes)])  # fmt: skip
     asked = f" --liquids {','.join(doc['liquids'])}" if doc.get("liquids") else ""
     lines = [
         f"# Generalisation over {doc['family']}",
@@ -229,9 +254,9 @@ def family_study_report(doc: dict) -> str:
         "by warping the red cup; the physics keeps the true mesh).",
         "",
         markdown_table(
-            ["policy", "env", "features", "containers", "success", "amount error", "spilled"],
+            STUDY_HEADER,
             rows,
-            align="lllrrrr",
+            align="lllrrrrl",
         ),
     ]
     if doc.get("liquids"):

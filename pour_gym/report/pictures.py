@@ -57,11 +57,15 @@ def _part_legend(fig, parts: list[Part]) -> None:
     fig.legend(handles=handles, loc="lower center", ncol=len(handles), frameon=False)
 
 
-def save_figure(fig, path: str | Path, dpi: int = 110) -> Path:
-    """Lay out, write (its folder made) and close a figure; the path written."""
+def save_figure(fig, path: str | Path, dpi: int = 110, tight: bool = True) -> Path:
+    """Lay out, write (its folder made) and close a figure; the path written.
+
+    ``tight=False`` keeps a layout the caller made (a legend placed outside the panels).
+    """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.tight_layout()
+    if tight:
+        fig.tight_layout()
     fig.savefig(path, dpi=dpi)
     plt.close(fig)
     return path
