@@ -226,7 +226,7 @@ def write_family_study(doc: dict, out: str | Path) -> Path:
 def family_study_report(doc: dict) -> str:
     """Markdown of :func:`family_study`: one row per policy, then each policy's buckets.
 
-    A study over liquids has a row per policy and liquid, and a section with a column per
+    A study over liquids has a row per policy and liquid, and tables with a column per
     liquid (:func:`liquids_pivot`).
     """
     rows = []
@@ -294,33 +294,30 @@ def liquids_pivot(doc: dict) -> str:
     for p in doc["policies"].values():
         key = (p["policy"], p.get("perception", "true"))
         cells.setdefault(key, {})[p["liquid"]] = p["mean"]
-    rows = []
-    for (policy, perception), by_liquid in cells.items():
-        row = [f"`{policy}`", perception]
-        for liquid in liquids:
-            m = by_liquid.get(liquid)
-            row.append(
-                "-" if m is None
-                else f"{_success_cell(m)}; {m['amount_error']:.1f}; {m['spilled']:.2f}"
-            )  # fmt: skip
-        rows.append(row)
-    header = ["policy", "features", *(f"{q}: success; error; spilled" for q in liquids)]
-    table = markdown_table(header, rows, align="ll" + "r" * len(liquids))
-    profiles = []
-    for (policy, perception), by_liquid in cells.items():
-        row = [f"`{policy}`", perception]
-        for liquid in liquids:
-            m = by_liquid.get(liquid) or {}
-            row.append(
-                f"{m['pour_seconds']:.2f}; {m['peak_flow']:.2f}"
-                if all(k in m for k in PROFILE) else "-"
-            )  # fmt: skip
-        profiles.append(row)
-    header = ["policy", "features", *(f"{q}: pour, s; peak flow, T/s" for q in liquids)]
-    profile_table = markdown_table(header, profiles, align="ll" + "r" * len(liquids))
+
+    def table(what: str, cell, needs: tuple[str, ...]) -> str:
+        rows = [
+            [f"`{policy}`", perception]
+            + [cell(by_liquid[q]) if all(k in by_liquid.get(q, {}) for k in needs) else "-"
+               for q in liquids]
+            for (policy, perception), by_liquid in cells.items()
+        ]  # fmt: skip
+        header = ["policy", "features", *(f"{q}: {what}" for q in liquids)]
+        return markdown_table(header, rows, align="ll" + "r" * len(liquids))
+
+    scores = table(
+        "success; error; spilled",
+        lambda m: f"{_success_cell(m)}; {m['amount_error']:.1f}; {m['spilled']:.2f}",
+        VALUES,
+    )
+    pours = table(
+        "pour, s; peak flow, T/s",
+        lambda m: f"{m['pour_seconds']:.2f}; {m['peak_flow']:.2f}",
+        PROFILE,
+    )
     return (
-        f"{table}\n\nThe pours (mean over the episodes: how long the stream ran, and its "
-        f"peak in target amounts per second):\n\n{profile_table}"
+        f"{scores}\n\nThe pours (mean over the episodes: how long the stream ran, and its "
+        f"peak in target amounts per second):\n\n{pours}"
     )
 
 
