@@ -250,6 +250,6 @@ def test_what_a_row_is_scored_on_names_the_kind_of_container():
 
     assert scored_on(rows("red_cup", "broad_cup", "ycb_mug")) == "catalogue (2)"
     assert scored_on(rows("procedural:test#0", "procedural:test#7")) == "procedural:test (2)"
-    assert scored_on(rows("/tmp/thin_cup.stl")) == "user meshes (1)"
-    mixed = rows("broad_cup", "procedural:test#0", "/home/u/cup.obj")
+    assert scored_on(rows("thin_cup.stl")) == "user meshes (1)"
+    mixed = rows("broad_cup", "procedural:test#0", "meshes/cup.obj")
     assert scored_on(mixed) == "procedural:test + catalogue + user meshes (3)"
