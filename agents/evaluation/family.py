@@ -235,7 +235,7 @@ def family_study_report(doc: dict) -> str:
         # The failures by why, over the members' rows (studies from before outcomes: "-").
         # In the rows' own order (the env's outcomes'), so the cell reads the same each run.
         keys = dict.fromkeys(k for r in p["members"] for k in r if k.startswith("outcome_"))
-        outcomes = {k: float(np.mean([r.get(k, 0.0) for r in p["members"]])) for k in keys}
+        outcomes = mean_of(p["members"], tuple(keys))
         rows.append([f"`{name}`", p["env"], p.get("perception", "true"), str(len(p["members"])),
                      _success_cell(m), f"{m['amount_error']:.1f}",
                      f"{m['spilled']:.2f}", failures_of(outcomes)])  # fmt: skip
