@@ -805,6 +805,52 @@ def test_an_algo_schedule_sets_ppo_target_kl_by_step_null_running_every_epoch():
         sac.learn(4, callback=schedule_callback(schedule))
 
 
+def test_an_algo_schedule_of_gamma_discounts_ppos_advantages_and_several_names_share_a_key():
+    """algo_schedule {gamma: ...} sets the model's discount and the rollout buffer's, from
+    which PPO's advantages are computed (GAE: A_t = delta_t + gamma lambda A_t+1, delta_t =
+    r_t + gamma V_t+1 - V_t); two names under one key are two schedules; a discount above 1
+    refused."""
+    from stable_baselines3 import PPO
+
+    from pour_gym.agents.training.recipes import load_recipe
+    from pour_gym.agents.training.schedule import StepSchedule, schedule_callback
+
+    both = StepSchedule.all_from_recipe(
+        "algo_schedule", {"target_kl": [[0, None], [64, 0.03]], "gamma": [[0, 0.5], [64, 0.9]]}
+    )
+    assert [x.name for x in both] == ["target_kl", "gamma"]
+    assert StepSchedule.all_to_dict(both) == {
+        "target_kl": [[0, None], [64, 0.03]],
+        "gamma": [[0, 0.5], [64, 0.9]],
+    }
+    assert StepSchedule.all_to_dict(()) is None
+    for bad in ({"gamma": [[0, 1.5]]}, {}, {"gamma": [[0, 0.99]], "lr": [[0, 1e-3]]}):
+        with pytest.raises(InputError, match="algo_schedule"):
+            StepSchedule.all_from_recipe("algo_schedule", bad)
+    model = PPO("MlpPolicy", "Pendulum-v1", n_steps=64, batch_size=32, n_epochs=1, gamma=0.99,
+                seed=0, device="cpu")  # fmt: skip
+    model.learn(64, callback=[schedule_callback(x) for x in both])
+    buffer = model.rollout_buffer
+    assert model.gamma == buffer.gamma == 0.5 and model.target_kl is None
+    lam = model.gae_lambda
+    for t in range(0, 62, 10):  # Pendulum's episodes are 200 steps: none ends in this rollout
+        delta = buffer.rewards[t] + 0.5 * buffer.values[t + 1] - buffer.values[t]
+        np.testing.assert_allclose(
+            buffer.advantages[t], delta + 0.5 * lam * buffer.advantages[t + 1], rtol=1e-5
+        )
+    model.learn(64, callback=[schedule_callback(x) for x in both], reset_num_timesteps=False)
+    assert model.gamma == buffer.gamma == 0.9 and model.target_kl == 0.03
+    recipe = load_recipe("PourGym/Pour-v2", "ppo", PPO, {}, "family-lineage")
+    assert {x.name: x.point(0)[1] for x in recipe.algo_schedule} == {
+        "target_kl": None,
+        "gamma": 0.99,
+    }
+    assert {x.name: x.point(500_000)[1] for x in recipe.algo_schedule} == {
+        "target_kl": 0.03,
+        "gamma": 0.998,
+    }
+
+
 class _Coin(gym.Env):
     """Four-step episodes that succeed or not as told: SB3's training success, set."""
 
@@ -890,4 +936,4 @@ def test_a_switch_point_takes_effect_when_the_training_success_reaches_the_level
         load_recipe("PourGym/Pour-v2", "ppo", PPO, {"switch": None}, "family-switch")
     recipe = load_recipe("PourGym/Pour-v2", "ppo", PPO, {}, "family-switch")
     assert recipe.switch == SuccessSwitch(0.3, 300_000, 800_000)
-    assert recipe.env_schedule.point(500_000, switch_at=400_000) == (400_000, 20.0)
+    assert recipe.env_schedule[0].point(500_000, switch_at=400_000) == (400_000, 20.0)

@@ -26,7 +26,12 @@ from pour_gym.agents.training.runs import (
     load_run,
     save_normaliser,
 )
-from pour_gym.agents.training.schedule import SwitchState, schedule_callback, switch_callback
+from pour_gym.agents.training.schedule import (
+    StepSchedule,
+    SwitchState,
+    schedule_callback,
+    switch_callback,
+)
 from pour_gym.agents.training.vector import training_vec_env
 from pour_gym.agents.training.warm_start import start_from_demonstrations
 from pour_gym.assets import expand_containers
@@ -129,8 +134,8 @@ def train(config: TrainConfig) -> dict:
         "noise_schedule": (
             dataclasses.asdict(recipe.noise_schedule) if recipe.noise_schedule else None
         ),
-        "env_schedule": recipe.env_schedule.to_dict() if recipe.env_schedule else None,
-        "algo_schedule": recipe.algo_schedule.to_dict() if recipe.algo_schedule else None,
+        "env_schedule": StepSchedule.all_to_dict(recipe.env_schedule),
+        "algo_schedule": StepSchedule.all_to_dict(recipe.algo_schedule),
         "switch": recipe.switch.to_dict() if recipe.switch else None,
         # What the environments were made with (recipe and run): evaluate uses it.
         "env_kwargs": arguments,
@@ -197,9 +202,8 @@ def train(config: TrainConfig) -> dict:
         if recipe.switch is not None:
             # Before the schedules': they read where it fired at the same rollout's start.
             callbacks.callbacks.append(switch_callback(recipe.switch, switched, out))
-        for schedule in (recipe.env_schedule, recipe.algo_schedule):
-            if schedule is not None:
-                callbacks.callbacks.append(schedule_callback(schedule, switched))
+        for schedule in recipe.env_schedule + recipe.algo_schedule:
+            callbacks.callbacks.append(schedule_callback(schedule, switched))
         model.learn(remaining, callback=callbacks, reset_num_timesteps=checkpoint is None)
         # The finished run is a checkpoint too: running the command again only evaluates.
         model.save(ckpt_dir / f"model_{model.num_timesteps}_steps.zip")

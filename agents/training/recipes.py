@@ -117,8 +117,8 @@ class Recipe:
     stochastic_eval: bool = False
     residual: ResidualConfig | None = None
     noise_schedule: NoiseSchedule | None = None
-    env_schedule: StepSchedule | None = None
-    algo_schedule: StepSchedule | None = None
+    env_schedule: tuple[StepSchedule, ...] = ()
+    algo_schedule: tuple[StepSchedule, ...] = ()
     switch: SuccessSwitch | None = None
 
     def wrapper(self) -> Callable[[gym.Env], gym.Env] | None:
@@ -210,12 +210,12 @@ def load_recipe(
             NoiseSchedule.from_recipe(own["noise_schedule"]) if own.get("noise_schedule") else None
         ),
         **{
-            key: StepSchedule.from_recipe(key, own[key]) if own.get(key) else None
+            key: StepSchedule.all_from_recipe(key, own[key]) if own.get(key) else ()
             for key in SCHEDULABLE  # env_schedule, algo_schedule
         },
         switch=SuccessSwitch.from_recipe(own["switch"]) if own.get("switch") else None,
     )
-    schedules = [x for x in (recipe.env_schedule, recipe.algo_schedule) if x is not None]
+    schedules = recipe.env_schedule + recipe.algo_schedule
     if recipe.switch is not None:
         if not any(x.switched for x in schedules):
             raise InputError(
@@ -230,15 +230,15 @@ def load_recipe(
             "a schedule has a 'switch' point but the recipe no switch: add one (--set "
             "'switch={success: 0.3, earliest: 300000, latest: 800000}')"
         )
-    scheduled = recipe.algo_schedule
-    if scheduled and scheduled.name in (overrides or {}) and scheduled.points[0][0] == 0:
-        # The schedule sets it before the first rollout: the run's value would go unused.
-        raise InputError(
-            f"--set {scheduled.name} is replaced from the first step by the recipe's "
-            f"algo_schedule {json.dumps(scheduled.to_dict())}: set the schedule instead (--set "
-            f"'algo_schedule={{{scheduled.name}: [[0, VALUE]]}}'), or drop it (--set "
-            "algo_schedule=null)"
-        )
+    for scheduled in recipe.algo_schedule:
+        if scheduled.name in (overrides or {}) and scheduled.points[0][0] == 0:
+            # The schedule sets it before the first rollout: the run's value would go unused.
+            raise InputError(
+                f"--set {scheduled.name} is replaced from the first step by the recipe's "
+                f"algo_schedule {json.dumps(scheduled.to_dict())}: set the schedule instead "
+                f"(--set 'algo_schedule={{{scheduled.name}: [[0, VALUE]]}}'), or drop it "
+                "(--set algo_schedule=null)"
+            )
     if recipe.residual is not None and recipe.demonstrations is not None:
         raise InputError("a recipe learns a residual on the expert or starts from its "
                          "demonstrations, not both")  # fmt: skip

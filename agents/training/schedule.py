@@ -24,6 +24,10 @@ step ``latest`` if it never does (:class:`SuccessSwitch`)::
     switch: {success: 0.3, earliest: 300000, latest: 800000}
     env_schedule: {max_tilt_rate: [[0, 60], [switch, 20]]}
 
+A recipe may schedule several names under one key, each with its own points::
+
+    algo_schedule: {target_kl: [[0, null], [500000, 0.03]], gamma: [[0, 0.99], [500000, 0.998]]}
+
 The three seeds of the step-500k switch ended in the order of their training success at
 the switch (0.14, 0.27, 0.14 gave 0.285, 0.405, 0.20 over the family), and the lineages
 switched from a policy at 0.30. The step it fired at is kept in the run's
@@ -55,15 +59,23 @@ SWITCH = "switch"
 SUCCESS_WINDOW = 100
 
 # What a schedule may change, and why each can: an argument read only when the env or the
-# algorithm is made would be set in vain. Each: (what it is, whether null is a value).
+# algorithm is made would be set in vain. Each: (what it is, whether null is a value, the
+# largest value or None).
 SCHEDULABLE = {
     "env_schedule": {
-        "max_tilt_rate": ("the source's fastest tilt, deg/s (read by every step)", False),
+        "max_tilt_rate": ("the source's fastest tilt, deg/s (read by every step)", False, None),
     },
     "algo_schedule": {
         "target_kl": (
             "PPO's early stop of an update's epochs (read by every update; null: all epochs)",
             True,
+            None,
+        ),
+        "gamma": (
+            "the discount (read by every update; PPO's rollout buffer's, for its advantages, "
+            "set with it)",
+            False,
+            1.0,
         ),
     },
 }
@@ -100,7 +112,7 @@ class StepSchedule:
                 f"{', '.join(known)}, not {value!r}"
             )
         name, given = next(iter(value.items()))
-        nullable = known[name][1]
+        _, nullable, largest = known[name]
         try:
             points = tuple(
                 (
@@ -118,15 +130,35 @@ class StepSchedule:
             or points[0][0] == SWITCH
             or steps[0] < 0
             or any(b <= a for a, b in itertools.pairwise(steps))
-            or not all(v is None or v > 0 for _, v in points)
+            or not all(v is None or 0 < v <= (largest or np.inf) for _, v in points)
         ):
             null = " or null" if nullable else ""
+            most = f" and <= {largest:g}" if largest else ""
             raise InputError(
                 f"{key}'s {name} needs [[from_step, value], ...] with steps >= 0 "
                 f"increasing (after a first count, one may be {SWITCH!r}) and values > "
-                f"0{null}, not {given!r}"
+                f"0{most}{null}, not {given!r}"
             )
         return cls(key, name, points)
+
+    @classmethod
+    def all_from_recipe(cls, key: str, value: dict) -> tuple[StepSchedule, ...]:
+        """One schedule per name in the recipe's mapping under ``key``.
+
+        ``algo_schedule: {target_kl: [[0, null], [500000, 0.03]], gamma: [[0, 0.99],
+        [500000, 0.998]]}`` gives two, each set by its own callback.
+
+        Raises:
+            InputError: as :meth:`from_recipe`, for any of them, or an empty mapping.
+        """
+        if not isinstance(value, dict) or not value:
+            return (cls.from_recipe(key, value),)  # refused there, with the form
+        return tuple(cls.from_recipe(key, {name: points}) for name, points in value.items())
+
+    @staticmethod
+    def all_to_dict(schedules: tuple[StepSchedule, ...]) -> dict | None:
+        """The recipe's form of several (for ``config.json``; None for none)."""
+        return {k: v for x in schedules for k, v in x.to_dict().items()} or None
 
     @property
     def switched(self) -> bool:
@@ -326,6 +358,10 @@ def schedule_callback(schedule: StepSchedule, switch: SwitchState | None = None)
                 self.training_env.env_method("set_wrapper_attr", schedule.name, point[1])
             else:
                 setattr(self.model, schedule.name, point[1])
+                # PPO's advantages read the rollout buffer's gamma, copied when it was made.
+                buffer = getattr(self.model, "rollout_buffer", None)
+                if hasattr(buffer, schedule.name):
+                    setattr(buffer, schedule.name, point[1])
             self.now = point
 
         def _on_step(self) -> bool:
