@@ -33,6 +33,10 @@ def test_bench_efflux_names_a_spacing_it_cannot_take(cli):
         proc = cli("bench", "efflux", "--sizes", bad, check=False)
         assert proc.returncode == 2 and words in proc.stderr
         assert "Traceback" not in proc.stderr
+    for bad, words in (("1,-2", "vessel scales"), ("9", "from 0.25 to 4")):
+        proc = cli("bench", "efflux", "--sizes", "5", "--scales", bad, check=False)
+        assert proc.returncode == 2 and words in proc.stderr
+        assert "Traceback" not in proc.stderr
 
 
 def test_bench_names_a_size_that_is_not_a_positive_number(cli):

@@ -198,7 +198,8 @@ def build_parser() -> argparse.ArgumentParser:
         ],
         help="accuracy is the fluid's against hydrostatics (not a timing); viscosity the "
         "fluid's measured against the liquids'; flows efflux, a dam break and the liquids' "
-        "pours; efflux water's efflux by particle spacing (--sizes: spacings, mm); liquids "
+        "pours; efflux water's efflux by particle spacing (--sizes: spacings, mm) and the "
+        "vessel's scale (--scales); liquids "
         "a step's cost by liquid; coldstart the seconds a new process takes to its first step",
     )  # fmt: skip
     p.add_argument("--out", help="flows: a folder for the figure (flows.png)")
@@ -215,6 +216,11 @@ def build_parser() -> argparse.ArgumentParser:
         help="viscosity: the calibration table, the liquids through the package's, or both",
     )
     p.add_argument("--sizes", help="comma-separated sizes (points, target vertices or particles)")
+    p.add_argument(
+        "--scales",
+        default="1",
+        help="efflux: comma-separated scales of the vessel, hole and column (2: twice as large)",
+    )
     p.add_argument(
         "--bullet-sizes",
         default="300,2000",

@@ -419,8 +419,9 @@ def _bench(args: argparse.Namespace) -> Output:
         from pour_gym.apps.bench.liquids import bench_efflux, efflux_table
 
         spacings = "particle spacings in mm (e.g. 5,3.5,2.5)"
-        mm = number_list(args.sizes, spacings, float) if args.sizes else []
-        result = bench_efflux(tuple(m / 1000 for m in mm)) if mm else bench_efflux()
+        mm = number_list(args.sizes, spacings, float) if args.sizes else [5, 3.5, 2.5]
+        scales = number_list(args.scales, "vessel scales (e.g. 1,2)", float)
+        result = bench_efflux(tuple(m / 1000 for m in mm), tuple(scales))
         return (result, lambda: efflux_table(result))
     if args.what == "viscosity":
         from pour_gym.apps.bench.liquids import bench_viscosity, viscosity_table

@@ -231,17 +231,23 @@ def shear_wave(
     return ShearWave(2 * w, amplitude, t, a, nu, c)
 
 
-def cylinder_field(height: float, cache_dir=None) -> SignedDistanceField:
-    """The signed-distance field of the validation cylinder of a given height (1 mm grid)."""
-    return build_sdf(cylinder_cup(R_IN, height, WALL, BASE), spacing=0.001, cache_dir=cache_dir)
+def cylinder_field(height: float, cache_dir=None, radius: float = R_IN) -> SignedDistanceField:
+    """The signed-distance field of the validation cylinder of a given height (1 mm grid).
+
+    Args:
+        height: its outer height, m.
+        cache_dir: where the field is cached (default: the user cache).
+        radius: its inner radius, m.
+    """
+    return build_sdf(cylinder_cup(radius, height, WALL, BASE), spacing=0.001, cache_dir=cache_dir)
 
 
-def column_lattice(spacing: float, height: float) -> np.ndarray:
-    """A cubic lattice filling the cylinder from its base to ``height`` above it, m."""
-    g = np.arange(-R_IN + spacing / 2, R_IN, spacing)
+def column_lattice(spacing: float, height: float, radius: float = R_IN) -> np.ndarray:
+    """A cubic lattice filling the cylinder (inner ``radius``) from its base to ``height``, m."""
+    g = np.arange(-radius + spacing / 2, radius, spacing)
     zs = np.arange(BASE + spacing / 2, BASE + height, spacing)
     pts = np.stack(np.meshgrid(g, g, zs, indexing="ij"), -1).reshape(-1, 3)
-    return pts[np.hypot(pts[:, 0], pts[:, 1]) < R_IN - spacing / 2]
+    return pts[np.hypot(pts[:, 0], pts[:, 1]) < radius - spacing / 2]
 
 
 def _lowest(pts: np.ndarray, count: int) -> np.ndarray:
@@ -374,15 +380,18 @@ class Efflux:
     heights: np.ndarray
 
 
-def holed_cylinder_field(hole_radius: float = HOLE_RADIUS, cache_dir=None) -> SignedDistanceField:
+def holed_cylinder_field(
+    hole_radius: float = HOLE_RADIUS, cache_dir=None, scale: float = 1.0
+) -> SignedDistanceField:
     """The efflux cylinder's field (1 mm grid): a hole of ``hole_radius`` m in its base.
 
     The validation cylinder's radius and walls, 12 cm tall, the hole through the middle of
-    the base.
+    the base; the cylinder ``scale`` times as wide and tall (the hole as given, the walls
+    and base as they are).
     """
     import trimesh
 
-    cup = cylinder_cup(R_IN, EFFLUX_HEIGHT, WALL, BASE)
+    cup = cylinder_cup(scale * R_IN, scale * EFFLUX_HEIGHT, WALL, BASE)
     hole = trimesh.creation.cylinder(radius=hole_radius, height=4 * BASE, sections=64)
     holed = trimesh.boolean.difference([cup, hole], engine="manifold")
     return build_sdf(holed, spacing=0.001, cache_dir=cache_dir)
@@ -394,6 +403,7 @@ def efflux(
     config: PBFConfig | None = None,
     num_threads: int | None = None,
     hole_radius: float = HOLE_RADIUS,
+    scale: float = 1.0,
 ) -> Efflux:
     """Fill the holed cylinder to ``start_height``, open the hole, watch the level fall.
 
@@ -407,21 +417,27 @@ def efflux(
         config: the fluid's parameters.
         num_threads: the fluid's threads.
         hole_radius: m.
+        scale: the cylinder's radius and height, the hole's radius and both heights are
+            ``scale`` times those given: at twice the spacing, scale 2 puts as many
+            particles across every length as scale 1 does (a geometrically similar
+            efflux, whose discharge coefficient says what the resolution does).
 
     Raises:
         ValueError: a level that never reaches ``end_height`` within 10 s.
     """
     cfg = config or PBFConfig()
-    depth = EFFLUX_HEIGHT - BASE
-    count = round(np.pi * R_IN**2 * start_height / cfg.particle_volume)
-    fluid = PBFluid(_lowest(column_lattice(cfg.spacing, depth), count), cfg, floor=None,
-                    num_threads=num_threads)  # fmt: skip
-    plug = fluid.add_collider(cylinder_field(EFFLUX_HEIGHT))
+    radius, hole_radius = scale * R_IN, scale * hole_radius
+    start_height, end_height = scale * start_height, scale * end_height
+    depth = scale * EFFLUX_HEIGHT - BASE
+    count = round(np.pi * radius**2 * start_height / cfg.particle_volume)
+    fluid = PBFluid(_lowest(column_lattice(cfg.spacing, depth, radius), count), cfg,
+                    floor=None, num_threads=num_threads)  # fmt: skip
+    plug = fluid.add_collider(cylinder_field(scale * EFFLUX_HEIGHT, radius=radius))
     for _ in range(60):
         fluid.step(1 / 60)
     fluid.colliders.remove(plug)
-    fluid.add_collider(holed_cylinder_field(hole_radius))
-    area = np.pi * R_IN**2
+    fluid.add_collider(holed_cylinder_field(hole_radius, scale=scale))
+    area = np.pi * radius**2
     dt, times, heights = 1 / 60, [0.0], []
 
     def level() -> float:
@@ -445,7 +461,7 @@ def efflux(
     # 0.59 with them, 0.54 without, between 4 mm's 0.51 and 3 mm's 0.54).
     first = (t >= JET_START) & (h >= 0.5 * h0)
     slope = np.polyfit(t[first], np.sqrt(h[first]), 1)[0]
-    ratio = (hole_radius / R_IN) ** 2  # a / A
+    ratio = (hole_radius / radius) ** 2  # a / A
     # The level's square root falls at C_d (a / A) sqrt(g / 2) / sqrt(1 - (a / A)^2) (the
     # last factor: the fluid's speed of approach, 0.6 % at the default hole).
     rate = ratio * np.sqrt(9.81 / 2.0) / np.sqrt(1.0 - ratio * ratio)

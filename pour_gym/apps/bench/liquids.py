@@ -22,6 +22,7 @@ import sys
 
 from tqdm import tqdm
 
+from pour_gym.errors import InputError
 from pour_gym.report.tables import markdown_table
 
 SET_VALUES = (0.0, 0.5e-3, 1e-3, 2e-3, 3e-3, 5e-3, 7e-3, 10e-3, 14e-3)  # m^2/s
@@ -144,23 +145,29 @@ def bench_flows(liquids: tuple[str, ...] = ("water", "oil", "syrup", "honey"), o
     return doc
 
 
-def bench_efflux(spacings: tuple[float, ...] = (0.005, 0.0035, 0.0025)) -> dict:
+def bench_efflux(
+    spacings: tuple[float, ...] = (0.005, 0.0035, 0.0025), scales: tuple[float, ...] = (1.0,)
+) -> dict:
     """Water's efflux (:func:`~pour_gym.fluid.validation.efflux`) at each particle spacing.
 
     The hole is 12 mm in radius at every spacing; the particles' centres keep about half a
     spacing from its edge, so the finer the spacing, the more of the hole the stream fills
-    and the nearer the discharge coefficient comes to a sharp orifice's (about 0.6).
+    and the nearer the discharge coefficient comes to a sharp orifice's (about 0.6). Each
+    scale makes the cylinder, its hole and the column that many times larger: at twice
+    the spacing, scale 2 has the hole as many spacings across as scale 1.
 
     Args:
         spacings: particle spacings, m (the envs' ``spacing=``).
+        scales: the vessel's scales, each run at every spacing (0.25-4; the particles grow
+            as scale^3 / spacing^3: scale 2 at 5 mm is about 21k, a minute on one thread).
 
     Raises:
-        InputError: a spacing outside the envs' range (2.5-7 mm).
+        InputError: a spacing outside the envs' range (2.5-7 mm), or a scale outside 0.25-4.
 
     Returns:
-        ``{"rows": [{"spacing", "particles", "hole_spacings", "discharge", "drain_s",
-        "torricelli_s", "ratio", "seconds"}, ...]}``; ``hole_spacings`` is the hole's
-        diameter in spacings, ``seconds`` the wall time of the run.
+        ``{"rows": [{"spacing", "scale", "particles", "hole_spacings", "discharge",
+        "drain_s", "torricelli_s", "ratio", "seconds"}, ...]}``; ``hole_spacings`` is the
+        hole's diameter in spacings, ``seconds`` the wall time of the run.
     """
     import time
 
@@ -169,18 +176,22 @@ def bench_efflux(spacings: tuple[float, ...] = (0.005, 0.0035, 0.0025)) -> dict:
     from pour_gym.envs.base import fluid_config_at
     from pour_gym.fluid.validation import HOLE_RADIUS, R_IN, efflux
 
-    column = 0.08  # m: the water's starting depth
+    bad = [x for x in scales if not 0.25 <= x <= 4.0]
+    if bad:
+        raise InputError(f"efflux scales run from 0.25 to 4 (the vessel's size), not {bad}")
+    column = 0.08  # m: the water's starting depth at scale 1
     configs = [fluid_config_at(None, spacing) for spacing in spacings]  # the envs' range
+    runs = [(sp, cfg, scale) for sp, cfg in zip(spacings, configs, strict=True) for scale in scales]
     rows = []
-    bar = tqdm(spacings, desc="bench efflux", file=sys.stderr)
-    for spacing, config in zip(bar, configs, strict=True):
+    for spacing, config, scale in tqdm(runs, desc="bench efflux", file=sys.stderr):
         start = time.perf_counter()
-        run = efflux(start_height=column, config=config, num_threads=1)
+        run = efflux(start_height=column, config=config, num_threads=1, scale=scale)
         rows.append(
             {
                 "spacing": spacing,
-                "particles": round(column * np.pi * R_IN**2 / config.particle_volume),
-                "hole_spacings": 2 * HOLE_RADIUS / spacing,
+                "scale": scale,
+                "particles": round(scale**3 * column * np.pi * R_IN**2 / config.particle_volume),
+                "hole_spacings": 2 * scale * HOLE_RADIUS / spacing,
                 "discharge": run.discharge,
                 "drain_s": run.drain_s,
                 "torricelli_s": run.torricelli_s,
@@ -194,12 +205,13 @@ def bench_efflux(spacings: tuple[float, ...] = (0.005, 0.0035, 0.0025)) -> dict:
 def efflux_table(doc: dict) -> str:
     """Markdown table of :func:`bench_efflux`."""
     return markdown_table(
-        ["spacing, mm", "particles", "hole, spacings across", "discharge coefficient C_d",
-         "draining to 1 cm, s", "Torricelli's with that C_d, s", "ratio (limit 0.85-1.15)",
-         "wall time, s"],
-        [[f"{r['spacing'] * 1000:g}", r["particles"], f"{r['hole_spacings']:.1f}",
-          f"{r['discharge']:.3f}", f"{r['drain_s']:.3f}", f"{r['torricelli_s']:.3f}",
-          f"{r['ratio']:.3f}", f"{r['seconds']:.0f}"] for r in doc["rows"]],
+        ["spacing, mm", "scale", "particles", "hole, spacings across",
+         "discharge coefficient C_d", "draining to 1 cm x scale, s",
+         "Torricelli's with that C_d, s", "ratio (limit 0.85-1.15)", "wall time, s"],
+        [[f"{r['spacing'] * 1000:g}", f"{r['scale']:g}", r["particles"],
+          f"{r['hole_spacings']:.1f}", f"{r['discharge']:.3f}", f"{r['drain_s']:.3f}",
+          f"{r['torricelli_s']:.3f}", f"{r['ratio']:.3f}", f"{r['seconds']:.0f}"]
+         for r in doc["rows"]],
     )  # fmt: skip
 
 
