@@ -208,10 +208,16 @@ def test_a_dam_break_front_follows_martin_and_moyce():
     """A column a wide and 2a high collapsing along a tank: from T = t sqrt(2 g / a) = 2.5
     to the far wall its front stays within Martin and Moyce's two columns (widened by 5 %
     either way); before, it leads them (a dam removed at once, a floor without friction)
-    by at most a third."""
-    from pour_gym.fluid.validation import dam_break
+    by at most a third, and Koshizuka and Oka's front of the same column by at most a
+    quarter; the column is near rest when the dam goes (0.150 m/s rms measured: the
+    lead follows that unrest, docs/liquids.md)."""
+    from pour_gym.fluid.validation import KOSHIZUKA_OKA, dam_break
 
     run = dam_break(num_threads=1)
+    assert 0.0 < run.settled_speed < 0.25
+    ko_times, ko_fronts = KOSHIZUKA_OKA
+    lead = np.interp(ko_times, run.times, run.fronts) / np.array(ko_fronts)
+    assert np.all(lead[1:] < 1.25) and np.all(lead[1:] > 1.0)  # 1.08-1.23 measured
     late = (run.times >= 2.5) & ~np.isnan(run.band[:, 0])
     assert late.sum() > 10
     z, band = run.fronts[late], run.band[late]

@@ -1,0 +1,45 @@
+"""The dam break's front against two experiments, and whether the column was at rest.
+
+For each particle spacing (mm, default 5): the column's rms particle speed when the dam
+goes (``DamBreak.settled_speed``), and the front over Martin and Moyce's (1952, a = 2.25
+in) and over Koshizuka and Oka's (1996) at each of their times up to T = t sqrt(2 g / a)
+= 3.4, with Ritter's inviscid front over theirs in brackets (x / a = 1 + 2 T for a column
+2a high). ``--iterations`` changes the solver's constraint iterations (the envs' 4),
+``--width`` scales the column's width a (and its height 2a). About 10 s a run at 5 mm,
+30 s at 2.5 mm, one thread (docs/liquids.md, "Flows with known answers").
+
+    python docs/liquids/dam_break_fronts.py 5 4 3.5 3 2.5
+    python docs/liquids/dam_break_fronts.py 5 --iterations 16
+    python docs/liquids/dam_break_fronts.py 5 --width 1.43
+"""
+
+import argparse
+import dataclasses
+
+import numpy as np
+
+from pour_gym.envs.base import fluid_config_at
+from pour_gym.fluid.validation import DAM_WIDTH, KOSHIZUKA_OKA, MARTIN_MOYCE, dam_break
+
+EXPERIMENTS = {
+    "Martin and Moyce": MARTIN_MOYCE["a = 2.25 in"],
+    "Koshizuka and Oka": KOSHIZUKA_OKA,
+}
+parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+parser.add_argument("spacings", nargs="*", type=float, default=[5.0], help="mm")
+parser.add_argument("--iterations", type=int, help="the solver's (default: the envs')")
+parser.add_argument("--width", type=float, default=1.0, help="a over Martin and Moyce's")
+args = parser.parse_args()
+for mm in args.spacings:
+    config = fluid_config_at(None, mm / 1000)
+    if args.iterations:
+        config = dataclasses.replace(config, iterations=args.iterations)
+    run = dam_break(width=args.width * DAM_WIDTH, config=config, num_threads=1)
+    print(f"{mm:g} mm, {config.iterations} iterations, a = {1000 * run.width:.1f} mm: the "
+          f"column's rms speed at release {run.settled_speed:.3f} m/s")  # fmt: skip
+    for name, (times, fronts) in EXPERIMENTS.items():
+        pairs = [(t, z) for t, z in zip(times, fronts, strict=True) if 0 < t <= 3.4]
+        ours = np.interp([t for t, _ in pairs], run.times, run.fronts)
+        cells = "  ".join(f"T {t:.2f}: {x / z:.2f} ({(1 + 2 * t) / z:.1f})"
+                          for (t, z), x in zip(pairs, ours, strict=True))  # fmt: skip
+        print(f"  front / {name}'s: {cells}")
