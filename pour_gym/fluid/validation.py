@@ -423,8 +423,11 @@ def efflux(
             efflux, whose discharge coefficient says what the resolution does).
 
     Raises:
+        InputError: a scale that is not above 0.
         ValueError: a level that never reaches ``end_height`` within 10 s.
     """
+    if not (np.isfinite(scale) and scale > 0.0):
+        raise InputError(f"scale must be a factor above 0 (2: twice the vessel), not {scale}")
     cfg = config or PBFConfig()
     radius, hole_radius = scale * R_IN, scale * hole_radius
     start_height, end_height = scale * start_height, scale * end_height
