@@ -566,7 +566,7 @@ def dam_break(
     floor_friction: float | None = None,
     hold: float = 1.0,
 ) -> DamBreak:
-    """A column a wide and 2a high, held by a dam for 1 s, released; its front over time.
+    """A column a wide and 2a high, held by a dam (1 s), released; its front over time.
 
     The tank's walls (free-slip, as all walls here) run along x from the back wall at
     x = 0 to the far one at :data:`TANK_LENGTH`; the column spans the tank's 4 cm of y, so
@@ -591,6 +591,8 @@ def dam_break(
     """
     if not (np.isfinite(gate_speed) and gate_speed >= 0.0):
         raise InputError(f"gate_speed must be a speed of 0 m/s or more, not {gate_speed}")
+    if not (np.isfinite(hold) and hold >= 0.0):
+        raise InputError(f"hold must be a time of 0 s or more, not {hold}")
     if floor_friction is not None and not (np.isfinite(floor_friction) and floor_friction >= 0):
         raise InputError(f"floor_friction must be a rate of 0 1/s or more, not {floor_friction}")
     cfg = config or PBFConfig()
