@@ -381,17 +381,19 @@ class Efflux:
 
 
 def holed_cylinder_field(
-    hole_radius: float = HOLE_RADIUS, cache_dir=None, scale: float = 1.0
+    hole_radius: float = HOLE_RADIUS,
+    cache_dir=None,
+    radius: float = R_IN,
+    height: float = EFFLUX_HEIGHT,
 ) -> SignedDistanceField:
     """The efflux cylinder's field (1 mm grid): a hole of ``hole_radius`` m in its base.
 
-    The validation cylinder's radius and walls, 12 cm tall, the hole through the middle of
-    the base; the cylinder ``scale`` times as wide and tall (the hole as given, the walls
-    and base as they are).
+    The validation cylinder's walls, ``radius`` m inside and ``height`` m tall (by default
+    the validation cylinder's, 12 cm), the hole through the middle of the base.
     """
     import trimesh
 
-    cup = cylinder_cup(scale * R_IN, scale * EFFLUX_HEIGHT, WALL, BASE)
+    cup = cylinder_cup(radius, height, WALL, BASE)
     hole = trimesh.creation.cylinder(radius=hole_radius, height=4 * BASE, sections=64)
     holed = trimesh.boolean.difference([cup, hole], engine="manifold")
     return build_sdf(holed, spacing=0.001, cache_dir=cache_dir)
@@ -431,15 +433,15 @@ def efflux(
     cfg = config or PBFConfig()
     radius, hole_radius = scale * R_IN, scale * hole_radius
     start_height, end_height = scale * start_height, scale * end_height
-    depth = scale * EFFLUX_HEIGHT - BASE
+    height = scale * EFFLUX_HEIGHT
     count = round(np.pi * radius**2 * start_height / cfg.particle_volume)
-    fluid = PBFluid(_lowest(column_lattice(cfg.spacing, depth, radius), count), cfg,
+    fluid = PBFluid(_lowest(column_lattice(cfg.spacing, height - BASE, radius), count), cfg,
                     floor=None, num_threads=num_threads)  # fmt: skip
-    plug = fluid.add_collider(cylinder_field(scale * EFFLUX_HEIGHT, radius=radius))
+    plug = fluid.add_collider(cylinder_field(height, radius=radius))
     for _ in range(60):
         fluid.step(1 / 60)
     fluid.colliders.remove(plug)
-    fluid.add_collider(holed_cylinder_field(hole_radius, scale=scale))
+    fluid.add_collider(holed_cylinder_field(hole_radius, radius=radius, height=height))
     area = np.pi * radius**2
     dt, times, heights = 1 / 60, [0.0], []
 
