@@ -235,6 +235,28 @@ def test_a_dam_break_front_follows_martin_and_moyce():
     assert run.fronts[-1] > 6.5  # it reached the far wall (7 a)
 
 
+def test_in_half_the_envs_substep_the_dam_breaks_column_holds_and_its_front_follows():
+    """The envs' substep (1/240 s) squeezes the column 23 particles deep at its base (the
+    solver's density 1.19 there, 1.081 read from the particles alone), a spring that
+    pushes the surge off early; half of it (1/480 s) holds the column at water's density
+    (1.005 measured) and the front follows Martin and Moyce's from their first point: at
+    most 1.04x the band's top before T = 2.5 (1.29x at 1/240 s), 0.93-0.96x its edges
+    after (docs/liquids.md)."""
+    from dataclasses import asdict
+
+    from pour_gym.apps.bench.liquids import FINE_SUBSTEP, _front_ratios
+    from pour_gym.fluid.pbf import PBFConfig
+    from pour_gym.fluid.validation import dam_break
+
+    run = dam_break(num_threads=1, config=PBFConfig(substep=FINE_SUBSTEP))
+    assert run.substep == FINE_SUBSTEP == 1 / 480
+    assert run.settled_compression < 1.02
+    lead, low, high = _front_ratios(asdict(run))
+    assert lead < 1.10 and 0.90 < low and high < 1.05
+    assert run.inside > 0.9  # 0.967 measured: the band widened by 5 % either way
+    assert run.fronts[-1] > 6.5
+
+
 def test_a_floor_with_friction_holds_the_dam_breaks_front_back():
     """On the envs' table (its friction 20/s) the surge reaches the far wall later than on
     a floor that lets it slide, and never leads it by more than a spacing."""

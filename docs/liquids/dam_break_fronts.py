@@ -8,13 +8,15 @@ their times up to T = t sqrt(2 g / a) = 3.4, with Ritter's inviscid front over t
 brackets (x / a = 1 + 2 T for a column 2a high). ``--iterations`` changes the solver's
 constraint iterations (the envs' 4), ``--width`` scales the column's width a (and its
 height 2a), ``--settle-damping`` takes that share of the particles' velocity away after
-each step of the hold. About 10 s a run at 5 mm, 30 s at 2.5 mm, one thread
+each step of the hold, ``--substep-rate`` sets the fluid's substeps per second (at least;
+the envs' 240). About 10 s a run at 5 mm, 30 s at 2.5 mm, one thread
 (docs/liquids.md, "Flows with known answers").
 
     python docs/liquids/dam_break_fronts.py 5 4 3.5 3 2.5
     python docs/liquids/dam_break_fronts.py 5 --iterations 16
     python docs/liquids/dam_break_fronts.py 5 --width 1.43
     python docs/liquids/dam_break_fronts.py 5 3.5 --settle-damping 0.5
+    python docs/liquids/dam_break_fronts.py 5 4 3.5 --substep-rate 480
 """
 
 import argparse
@@ -34,14 +36,18 @@ parser.add_argument("spacings", nargs="*", type=float, default=[5.0], help="mm")
 parser.add_argument("--iterations", type=int, help="the solver's (default: the envs')")
 parser.add_argument("--width", type=float, default=1.0, help="a over Martin and Moyce's")
 parser.add_argument("--settle-damping", type=float, default=0.0, help="share, each hold step")
+parser.add_argument("--substep-rate", type=float, help="substeps per second (the envs': 240)")
 args = parser.parse_args()
 for mm in args.spacings:
     config = fluid_config_at(None, mm / 1000)
     if args.iterations:
         config = dataclasses.replace(config, iterations=args.iterations)
+    if args.substep_rate:
+        config = dataclasses.replace(config, substep=1.0 / args.substep_rate)
     run = dam_break(width=args.width * DAM_WIDTH, config=config, num_threads=1,
                     settle_damping=args.settle_damping)  # fmt: skip
-    print(f"{mm:g} mm, {config.iterations} iterations, a = {1000 * run.width:.1f} mm, "
+    print(f"{mm:g} mm, {config.iterations} iterations, substeps of 1/{1 / config.substep:g} s, "
+          f"a = {1000 * run.width:.1f} mm, "
           f"settle damping {args.settle_damping:g}: at release the column's rms speed "
           f"{run.settled_speed:.3f} m/s, its density over rest (90th percentile) "
           f"{run.settled_compression:.3f}")  # fmt: skip

@@ -510,6 +510,7 @@ class DamBreak:
         width: the column's width a, m (its height 2a).
         gate_speed: the dam's upward speed on release, m/s (0: removed at once).
         floor_friction: the floor's friction, 1/s (None: it lets the liquid slide).
+        substep: the fluid's largest substep, s (``PBFConfig.substep``; the envs' 1/240).
         times: (T,) ``t sqrt(2 g / a)``.
         fronts: (T,) ``x / a``, the front's distance from the back wall over a.
         band: (T, 2) the lowest and highest front Martin and Moyce measured at each time
@@ -527,6 +528,7 @@ class DamBreak:
     width: float
     gate_speed: float
     floor_friction: float | None
+    substep: float
     times: np.ndarray
     fronts: np.ndarray
     band: np.ndarray
@@ -669,6 +671,7 @@ def dam_break(
         width,
         float(gate_speed),
         floor_friction,
+        cfg.substep,
         times_a,
         fronts_a,
         band,
