@@ -187,6 +187,10 @@ def test_a_family_run_scored_on_the_catalogue_too_gets_references_with_every_one
     (family / "eval-catalogue-sampled.json").write_text(json.dumps(sampled))
     weighted = {**evaluation((5.0, 5.0, 5.0), False), "env_kwargs": {"spill_weight": 10}}
     (family / "eval-catalogue-spill10.json").write_text(json.dumps(weighted))
+    # A checkpoint's evaluation: its own row, at its own steps, its wall time not known.
+    policy = str(family / "checkpoints" / "model_850000_steps.zip")
+    early = {**evaluation((1.0, 1.0, 1.0), False), "policy": policy, "actions": "mean"}
+    (family / "eval-850k-catalogue.json").write_text(json.dumps(early))
     refs = []
     for policy, returns in (("scripted", (2.0, 2.0, 2.0)), ("random", (0.0, 0.0, 0.0))):
         refs.append(tmp_path / f"{policy}.json")
@@ -206,6 +210,9 @@ def test_a_family_run_scored_on_the_catalogue_too_gets_references_with_every_one
     # returns are in other units than the references').
     spill10 = rows["ppo", "catalogue (3)", "last step, spill_weight=10"]
     assert spill10["seeds"] == [0] and spill10["iqm"] is None
+    at_850k = rows["ppo", "catalogue (3)", "checkpoint at 850,000 steps"]
+    assert at_850k["timesteps"] == [850_000] and at_850k["wall_minutes"] == []
+    assert cat["timesteps"] == [1000]  # the run's own end
     scored = {(r["algo"], r["scored_on"]) for r in doc["rows"]}
     assert {("scripted", "catalogue (3)"), ("random", "catalogue (3)"),
             ("scripted", "catalogue (2)")} <= scored  # fmt: skip

@@ -213,7 +213,9 @@ def run_summaries(run_dir: Path) -> list[dict]:
     ``pour-gym evaluate <run_dir> ... --json`` (for example a family run scored on the
     catalogue too, or with ``--actions sampled``); its summary is the run's with that
     evaluation's rows, named ``<run>-<name>``: another row of the report (other unseen
-    containers, or the model acting otherwise), the same training (curve, wall time).
+    containers, or the model acting otherwise), the same training (curve, wall time). One
+    of a checkpoint (``pour-gym evaluate <run_dir>/checkpoints/model_N_steps.zip``) is the
+    model "checkpoint at N steps", its env steps N and its wall time not known.
 
     Raises:
         InputError: a folder that is not a finished run, or a further evaluation that is
@@ -229,7 +231,13 @@ def run_summaries(run_dir: Path) -> list[dict]:
         )
         rows, episodes = result["rows"], result["episodes"]
         name = path.stem.removeprefix("eval-")
-        model = main["model"]
+        model, timesteps, wall = main["model"], main["timesteps"], main["wall_seconds"]
+        # A checkpoint of the run (pour-gym evaluate RUN/checkpoints/model_N_steps.zip):
+        # its own steps, not the run's end; its share of the wall time is not recorded.
+        checkpoint = re.search(r"model_(\d+)_steps\.zip$", str(result.get("policy", "")))
+        if checkpoint:
+            timesteps, wall = int(checkpoint.group(1)), None
+            model = f"checkpoint at {timesteps:,} steps"
         if result.get("actions"):  # evaluated by its mean or its samples, whatever in training
             model = model.removesuffix(SAMPLED) + (
                 SAMPLED if result["actions"] == "sampled" else ""
@@ -241,6 +249,7 @@ def run_summaries(run_dir: Path) -> list[dict]:
         if extra:
             model += ", " + ", ".join(f"{k}={v}" for k, v in sorted(extra.items()))
         found.append({**main, "run": f"{main['run']}-{name}", "model": model,
+                      "timesteps": timesteps, "wall_seconds": wall,
                       "env_kwargs": {**main["env_kwargs"], **extra},
                       "metrics": _metrics(rows), "eval_episodes": episodes,
                       "eval_rows": rows})  # fmt: skip
