@@ -851,6 +851,33 @@ def test_an_algo_schedule_of_gamma_discounts_ppos_advantages_and_several_names_s
     }
 
 
+def test_an_algo_schedule_of_the_learning_rate_sets_the_optimisers_step_size_by_step():
+    """algo_schedule {learning_rate: ...} reaches the optimiser (SB3 reads lr_schedule, not
+    learning_rate): the recipe's own rate (here rl-zoo3's falling lin_X) until the first
+    point, each point's after; a rate of 0 refused."""
+    from stable_baselines3 import PPO
+
+    from pour_gym.agents.training.recipes import algorithm_arguments
+    from pour_gym.agents.training.schedule import StepSchedule, schedule_callback
+
+    schedule = StepSchedule.from_recipe("algo_schedule",
+                                        {"learning_rate": [[64, 1e-3], [128, 1e-5]]})  # fmt: skip
+    with pytest.raises(InputError, match="learning_rate"):
+        StepSchedule.from_recipe("algo_schedule", {"learning_rate": [[0, 0.0]]})
+    model = PPO("MlpPolicy", "Pendulum-v1", n_steps=64, batch_size=32, n_epochs=1, seed=0,
+                device="cpu", **algorithm_arguments({"learning_rate": "lin_0.01"}))  # fmt: skip
+
+    def rate() -> float:
+        return model.policy.optimizer.param_groups[0]["lr"]
+
+    model.learn(64, callback=schedule_callback(schedule))
+    # Before the first point, lin_0.01's: half of it half-way, 0 at the end of the learn.
+    assert model.lr_schedule(0.5) == pytest.approx(0.005) and rate() == 0.0
+    for expected in (1e-3, 1e-5):
+        model.learn(64, callback=schedule_callback(schedule), reset_num_timesteps=False)
+        assert model.learning_rate == model.lr_schedule(0.5) == rate() == expected
+
+
 class _Coin(gym.Env):
     """Four-step episodes that succeed or not as told: SB3's training success, set."""
 

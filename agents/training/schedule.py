@@ -28,6 +28,10 @@ A recipe may schedule several names under one key, each with its own points::
 
     algo_schedule: {target_kl: [[0, null], [500000, 0.03]], gamma: [[0, 0.99], [500000, 0.998]]}
 
+The optimiser's step size may fall in steps (``learning_rate: [[0, 3.0e-4], [500000,
+1.0e-4], [750000, 3.0e-5]]``): rl-zoo3's ``lin_X`` falls from the first update, this from
+the points given.
+
 The three seeds of the step-500k switch ended in the order of their training success at
 the switch (0.14, 0.27, 0.14 gave 0.285, 0.405, 0.20 over the family), and the lineages
 switched from a policy at 0.30. The step it fired at is kept in the run's
@@ -76,6 +80,12 @@ SCHEDULABLE = {
             "set with it)",
             False,
             1.0,
+        ),
+        "learning_rate": (
+            "the optimiser's step size (read by every update; the recipe's own, a number "
+            "or rl-zoo3's lin_X, until the first point)",
+            False,
+            None,
         ),
     },
 }
@@ -362,6 +372,10 @@ def schedule_callback(schedule: StepSchedule, switch: SwitchState | None = None)
                 buffer = getattr(self.model, "rollout_buffer", None)
                 if hasattr(buffer, schedule.name):
                     setattr(buffer, schedule.name, point[1])
+                if schedule.name == "learning_rate":
+                    # SB3's updates read the step size from lr_schedule (made from
+                    # learning_rate when the model was), not from learning_rate itself.
+                    self.model._setup_lr_schedule()
             self.now = point
 
         def _on_step(self) -> bool:
