@@ -234,9 +234,11 @@ def run_summaries(run_dir: Path) -> list[dict]:
         model, timesteps, wall = main["model"], main["timesteps"], main["wall_seconds"]
         # A checkpoint of the run (pour-gym evaluate RUN/checkpoints/model_N_steps.zip):
         # its own steps, not the run's end; its share of the wall time is not recorded.
-        checkpoint = re.search(r"model_(\d+)_steps\.zip$", str(result.get("policy", "")))
-        if checkpoint:
-            timesteps, wall = int(checkpoint.group(1)), None
+        from pour_gym.agents.training.runs import checkpoint_steps
+
+        checkpoint = checkpoint_steps(result.get("policy", ""))
+        if checkpoint is not None:
+            timesteps, wall = checkpoint, None
             model = f"checkpoint at {timesteps:,} steps"
         if result.get("actions"):  # evaluated by its mean or its samples, whatever in training
             model = model.removesuffix(SAMPLED) + (

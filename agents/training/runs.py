@@ -100,8 +100,8 @@ def load_run(model_path: str | Path, algo: str | None = None) -> Run:
          if p.is_file()), None,
     )  # fmt: skip
     config = json.loads(config_path.read_text()) if config_path is not None else {}
-    steps = re.fullmatch(r"model_(\d+)_steps\.zip", path.name)
-    stats = path.parent / (f"vecnormalize_{steps.group(1)}_steps.pkl" if steps else NORMALISER)
+    steps = checkpoint_steps(path)
+    stats = path.parent / (f"vecnormalize_{steps}_steps.pkl" if steps is not None else NORMALISER)
     if config.get("normalize") and not stats.is_file():
         # Acting on raw observations, a model trained on normalised ones is another policy.
         raise InputError(
@@ -132,11 +132,17 @@ def load_run(model_path: str | Path, algo: str | None = None) -> Run:
     return Run(model=model, config=config, normaliser=normaliser)
 
 
+def checkpoint_steps(path: str | Path) -> int | None:
+    """The env steps of a checkpoint file (SB3's ``model_<steps>_steps.zip``), else None."""
+    steps = re.fullmatch(r"model_(\d+)_steps\.zip", Path(path).name)
+    return int(steps.group(1)) if steps else None
+
+
 def latest_checkpoint(directory: Path) -> tuple[Path | None, int]:
     """The newest ``model_<steps>_steps.zip`` in a checkpoint folder, and its steps."""
     best, steps = None, 0
     for path in directory.glob("model_*_steps.zip"):
-        n = int(re.search(r"_(\d+)_steps", path.name).group(1))
+        n = checkpoint_steps(path) or 0
         if n > steps:
             best, steps = path, n
     return best, steps
