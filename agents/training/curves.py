@@ -26,6 +26,7 @@ from pour_gym.agents.training.runs import (
     BEST,
     NORMALISER,
     Run,
+    checkpoint_file,
     keep_if_best,
     rank_point,
     save_normaliser,
@@ -124,8 +125,8 @@ def record_curve_from_checkpoints(config: TrainConfig, out: Path, env_kwargs: di
     steps = range(config.curve_every, config.timesteps + 1, config.curve_every)
     loaded = []
     for step in steps:
-        model = folder / f"model_{step}_steps.zip"
-        stats = folder / f"vecnormalize_{step}_steps.pkl"
+        model = checkpoint_file(folder, step)
+        stats = checkpoint_file(folder, step, "normaliser")
         if not model.is_file() or ((out / NORMALISER).is_file() and not stats.is_file()):
             raise InputError(
                 f"{out}: no checkpoint of {step} steps ({model.name} with its statistics) to "
@@ -195,7 +196,7 @@ def keep_best_of_curve(out: Path, task: Task) -> dict | None:
     if kept.is_file() and json.loads(kept.read_text()).get("timesteps") == steps:
         kept.write_text(json.dumps(point) + "\n")  # the model kept; the curve may be new
         return point
-    model = out / "checkpoints" / f"model_{steps}_steps.zip"
+    model = checkpoint_file(out / "checkpoints", steps)
     if not model.is_file():
         raise InputError(
             f"{out}: the best learning-curve point ({steps} steps) has no checkpoint "
@@ -203,7 +204,7 @@ def keep_best_of_curve(out: Path, task: Task) -> dict | None:
         )
     folder.mkdir(parents=True, exist_ok=True)
     shutil.copyfile(model, folder / "model.zip")
-    stats = out / "checkpoints" / f"vecnormalize_{steps}_steps.pkl"
+    stats = checkpoint_file(out / "checkpoints", steps, "normaliser")
     if (out / NORMALISER).is_file():  # the run normalises: the point's statistics too
         if not stats.is_file():
             raise InputError(f"{out}: the checkpoint of {steps} steps has no {stats.name}")

@@ -22,6 +22,7 @@ from pour_gym.agents.training.recipes import Recipe, algorithm_arguments, load_r
 from pour_gym.agents.training.runs import (
     BEST,
     NORMALISER,
+    checkpoint_file,
     latest_checkpoint,
     load_run,
     save_normaliser,
@@ -160,7 +161,7 @@ def train(config: TrainConfig) -> dict:
                 config, model, venv, env_kwargs, demos_cfg, recipe.wrapper(), out
             )
     else:
-        stats = ckpt_dir / f"vecnormalize_{done}_steps.pkl"
+        stats = checkpoint_file(ckpt_dir, done, "normaliser")
         if recipe.normalize and stats.is_file():
             venv = VecNormalize.load(str(stats), venv.venv)
         importable_old_paths()  # a checkpoint saved before the agents were grouped
@@ -177,7 +178,7 @@ def train(config: TrainConfig) -> dict:
                 "network's shape cannot change when a run resumes (keep the recipe's "
                 "policy_kwargs, or train into a new --out)"
             ) from err
-        buffer = ckpt_dir / f"model_replay_buffer_{done}_steps.pkl"
+        buffer = checkpoint_file(ckpt_dir, done, "replay_buffer")
         if buffer.is_file() and hasattr(model, "load_replay_buffer"):
             model.load_replay_buffer(buffer)
         demos = getattr(getattr(model, "replay_buffer", None), "demonstrations", None)
@@ -206,7 +207,7 @@ def train(config: TrainConfig) -> dict:
             callbacks.callbacks.append(schedule_callback(schedule, switched))
         model.learn(remaining, callback=callbacks, reset_num_timesteps=checkpoint is None)
         # The finished run is a checkpoint too: running the command again only evaluates.
-        model.save(ckpt_dir / f"model_{model.num_timesteps}_steps.zip")
+        model.save(checkpoint_file(ckpt_dir, model.num_timesteps))
         save_normaliser(venv, ckpt_dir, model.num_timesteps)
     model.save(out / "model.zip")
     save_normaliser(venv, out)

@@ -101,7 +101,11 @@ def load_run(model_path: str | Path, algo: str | None = None) -> Run:
     )  # fmt: skip
     config = json.loads(config_path.read_text()) if config_path is not None else {}
     steps = checkpoint_steps(path)
-    stats = path.parent / (f"vecnormalize_{steps}_steps.pkl" if steps is not None else NORMALISER)
+    stats = (
+        checkpoint_file(path.parent, steps, "normaliser")
+        if steps is not None
+        else path.parent / NORMALISER
+    )
     if config.get("normalize") and not stats.is_file():
         # Acting on raw observations, a model trained on normalised ones is another policy.
         raise InputError(
@@ -132,6 +136,23 @@ def load_run(model_path: str | Path, algo: str | None = None) -> Run:
     return Run(model=model, config=config, normaliser=normaliser)
 
 
+def checkpoint_file(folder: Path, steps: int, kind: str = "model") -> Path:
+    """A checkpoint folder's file of ``steps`` environment steps.
+
+    Args:
+        folder: the run's ``checkpoints`` folder.
+        steps: the checkpoint's environment steps.
+        kind: ``"model"`` (SB3's ``model_<steps>_steps.zip``), ``"normaliser"`` (its
+            ``VecNormalize`` statistics) or ``"replay_buffer"`` (an off-policy learner's).
+    """
+    names = {
+        "model": f"model_{steps}_steps.zip",
+        "normaliser": f"vecnormalize_{steps}_steps.pkl",
+        "replay_buffer": f"model_replay_buffer_{steps}_steps.pkl",
+    }
+    return folder / names[kind]
+
+
 def checkpoint_steps(path: str | Path) -> int | None:
     """The env steps of a checkpoint file (SB3's ``model_<steps>_steps.zip``), else None."""
     steps = re.fullmatch(r"model_(\d+)_steps\.zip", Path(path).name)
@@ -153,8 +174,10 @@ def save_normaliser(venv, folder: Path, steps: int | None = None) -> None:
     from stable_baselines3.common.vec_env import VecNormalize
 
     if isinstance(venv, VecNormalize):
-        name = NORMALISER if steps is None else f"vecnormalize_{steps}_steps.pkl"
-        venv.save(str(folder / name))
+        if steps is not None:
+            venv.save(str(checkpoint_file(folder, steps, "normaliser")))
+        else:
+            venv.save(str(folder / NORMALISER))
 
 
 def rank_point(point: dict, task: Task) -> tuple[float, float]:
