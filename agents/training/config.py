@@ -26,6 +26,9 @@ ALGORITHMS = {
     "ppo": "stable_baselines3:PPO",
     "td3": "stable_baselines3:TD3",
     "tqc": "sb3_contrib:TQC",
+    # Augmented Random Search (sb3-contrib's) with every candidate of an update scored on
+    # the same episodes (agents/training/ars.py): a linear policy searched from the reward.
+    "ars": "pour_gym.agents.training.ars:PairedARS",
     # Behaviour cloning: TQC's actor cloned from the scripted expert's demonstrations, with
     # TQC's own updates off in its recipe (gradient_steps: 0). A TQC model on disk.
     "bc": "sb3_contrib:TQC",
@@ -36,15 +39,16 @@ def algorithm(name: str):
     """The SB3 algorithm class of a name in :data:`ALGORITHMS`.
 
     Raises:
-        InputError: an unknown name, or sb3-contrib missing for TQC.
+        InputError: an unknown name, or sb3-contrib missing for TQC or ARS.
     """
     if name not in ALGORITHMS:
         raise InputError(f"unknown algorithm {name!r}; use one of {', '.join(ALGORITHMS)}")
     module, cls = ALGORITHMS[name].split(":")
     try:
         return getattr(importlib.import_module(module), cls)
-    except ImportError:
-        package = module.replace("_", "-")
+    except ImportError as err:
+        # The package that is missing (sb3_contrib for pour-gym's ARS too), as pip names it.
+        package = (err.name or module).split(".")[0].replace("_", "-")
         raise InputError(f"{name} needs the {package} package: pip install {package}") from None
 
 

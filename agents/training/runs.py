@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pour_gym.agents.training.config import algorithm
+from pour_gym.agents.training.config import ALGORITHMS, algorithm
 from pour_gym.agents.training.moved_modules import importable_old_paths
 from pour_gym.assets import expand_containers
 from pour_gym.envs import Task
@@ -114,7 +114,7 @@ def load_run(model_path: str | Path, algo: str | None = None) -> Run:
         )
     name = config.get("algo", algo)
     if name is None:
-        raise InputError(f"which algorithm made {path.name}? pass --algo (sac, ppo, td3, tqc)")
+        raise InputError(f"which algorithm made {path.name}? pass --algo ({', '.join(ALGORITHMS)})")
     if MODELS.resolve() not in path.resolve().parents:
         # A model file is a zip of pickles and its normaliser a pickle: loading one runs
         # whatever code its author put in it. Said once per process (Python's default

@@ -1,0 +1,91 @@
+"""Augmented Random Search with common episodes (agents/training/ars.py)."""
+
+import numpy as np
+import pytest
+import torch as th
+
+from pour_gym.envs import POUR_V2, make
+
+# Short episodes of a small pour: 12 steps at most.
+QUICK = {"objects": "red_cup", "amount_range": (40, 80), "max_episode_steps": 12}
+
+
+def _ars(venv, **kwargs):
+    from pour_gym.agents.training.ars import PairedARS
+
+    return PairedARS("LinearPolicy", venv, n_delta=2, seed=7, device="cpu",
+                     policy_kwargs={"with_bias": True}, **kwargs)  # fmt: skip
+
+
+def test_every_candidate_is_scored_on_the_same_episodes_as_one_env_plays_them():
+    """Two candidates with the same weights score the same to the bit, whichever slot
+    they take; a score is the sum of each env's first episode's rewards, as a single env
+    reset from the update's seed (plus the env's index) gives them; the update's weights
+    are left as they were."""
+    from stable_baselines3.common.logger import configure
+
+    from pour_gym.agents.training.ars import update_seed
+    from pour_gym.agents.training.vector import NativeVecEnv
+
+    venv = NativeVecEnv(POUR_V2, 2, QUICK)
+    try:
+        model = _ars(venv)
+        model.set_logger(configure(None, []))
+        _, callback = model._setup_learn(10**6)  # what learn() sets up before an update
+        weights = th.linspace(-0.5, 0.5, model.n_params)
+        other = -weights
+        candidates = th.stack([weights, other, weights, weights])
+        before = model.weights.clone()
+        returns = model.evaluate_candidates(candidates, callback, None).numpy()
+        assert returns[0] == returns[2] == returns[3]
+        assert returns[0] != returns[1]
+        assert th.equal(model.weights, before)
+        # Each candidate steps both envs until the longer episode ends (12 steps at most).
+        assert 0 < model.num_timesteps <= 4 * 2 * 12
+        # One env at a time, from the update's seeds, acting by the same weights.
+        model.policy.load_from_vector(weights)
+        first = update_seed(7, 0)
+        total = 0.0
+        for i in range(2):
+            env = make(POUR_V2, **QUICK)
+            obs, _ = env.reset(seed=first + i)
+            done = False
+            while not done:
+                action, _ = model.policy.predict(obs[None], deterministic=True)
+                obs, reward, terminated, truncated, _ = env.step(action[0])
+                total += float(reward)
+                done = terminated or truncated
+            env.close()
+        assert returns[0] == np.float32(total)
+    finally:
+        venv.close()
+
+
+def test_update_seeds_follow_the_run_seed_and_stay_clear_of_evaluation_seeds():
+    from pour_gym.agents.training.ars import SEED_BASE, update_seed
+
+    seeds = [update_seed(3, k) for k in range(200)]
+    assert seeds == [update_seed(3, k) for k in range(200)]
+    assert len(set(seeds)) == 200 and min(seeds) >= SEED_BASE
+    assert seeds != [update_seed(4, k) for k in range(200)]
+
+
+@pytest.mark.slow
+def test_a_saved_search_loads_and_searches_on_from_its_weights(tmp_path):
+    """A checkpoint loads with the weights the search stepped to (the policy's and the
+    search's own), so a resumed run searches on from them, not from zero."""
+    from pour_gym.agents.training.ars import PairedARS
+    from pour_gym.agents.training.vector import NativeVecEnv
+
+    venv = NativeVecEnv(POUR_V2, 2, QUICK)
+    try:
+        model = _ars(venv, delta_std=0.1)
+        model.learn(1)  # one update: 2 x 2 candidates, 2 episodes each
+        assert model.weights.abs().sum() > 0
+        model.save(tmp_path / "ars.zip")
+        loaded = PairedARS.load(tmp_path / "ars.zip", env=venv, device="cpu")
+        assert th.equal(loaded.weights, model.weights)
+        flat = th.nn.utils.parameters_to_vector(loaded.policy.parameters()).detach()
+        assert th.equal(flat, model.weights)
+    finally:
+        venv.close()
