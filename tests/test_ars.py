@@ -89,3 +89,34 @@ def test_a_saved_search_loads_and_searches_on_from_its_weights(tmp_path):
         assert th.equal(flat, model.weights)
     finally:
         venv.close()
+
+
+def test_train_py_searches_with_ars_checkpoints_and_evaluates_its_linear_policy(tmp_path):
+    """``train.py --algo ars --recipe family`` end to end at a tiny size: the run saves a
+    model that loads and acts by its weights, and running the command again resumes from
+    the finished checkpoint and only evaluates (the same rows)."""
+    import json
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    from pour_gym.agents.training import load_run
+
+    out = tmp_path / "ars"
+    cmd = [
+        sys.executable, str(Path(__file__).resolve().parents[1] / "train.py"),
+        "--env", POUR_V2, "--algo", "ars", "--recipe", "family", "--objects", "red_cup",
+        "--timesteps", "100", "--n-envs", "2", "--set", "n_delta=1", "--set", "n_top=1",
+        "--env-kwargs", '{"amount_range": [40, 80], "max_episode_steps": 12}',
+        "--eval-objects", "red_cup", "--eval-episodes", "1", "--checkpoint-every", "48",
+        "--out", str(out), "--json",
+    ]  # fmt: skip
+    first = subprocess.run(cmd, capture_output=True, text=True, check=True)
+    doc = json.loads(first.stdout)
+    assert doc["algo"] == "ars" and doc["timesteps"] == 100
+    run = load_run(out / "model.zip")
+    flat = th.nn.utils.parameters_to_vector(run.model.policy.parameters()).detach()
+    assert th.equal(flat, run.model.weights) and flat.abs().sum() > 0
+    assert run.model.num_timesteps >= 100 and list((out / "checkpoints").glob("model_*.zip"))
+    again = subprocess.run(cmd, capture_output=True, text=True, check=True)
+    assert json.loads(again.stdout)["rows"] == doc["rows"]
