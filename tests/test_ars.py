@@ -1,7 +1,6 @@
 """Augmented Random Search with common episodes (agents/training/ars.py)."""
 
 import numpy as np
-import pytest
 import torch as th
 
 from pour_gym.envs import POUR_V2, make
@@ -24,6 +23,7 @@ def test_every_candidate_is_scored_on_the_same_episodes_as_one_env_plays_them():
     are left as they were."""
     from stable_baselines3.common.logger import configure
 
+    from pour_gym.agents.policies.rollout import rollout
     from pour_gym.agents.training.ars import update_seed
     from pour_gym.agents.training.vector import NativeVecEnv
 
@@ -48,13 +48,8 @@ def test_every_candidate_is_scored_on_the_same_episodes_as_one_env_plays_them():
         total = 0.0
         for i in range(2):
             env = make(POUR_V2, **QUICK)
-            obs, _ = env.reset(seed=first + i)
-            done = False
-            while not done:
-                action, _ = model.policy.predict(obs[None], deterministic=True)
-                obs, reward, terminated, truncated, _ = env.step(action[0])
-                total += float(reward)
-                done = terminated or truncated
+            act = lambda obs: model.policy.predict(obs[None], deterministic=True)[0][0]  # noqa: E731
+            total += rollout(env, act, seed=first + i).reward
             env.close()
         assert returns[0] == np.float32(total)
     finally:
@@ -70,30 +65,10 @@ def test_update_seeds_follow_the_run_seed_and_stay_clear_of_evaluation_seeds():
     assert seeds != [update_seed(4, k) for k in range(200)]
 
 
-@pytest.mark.slow
-def test_a_saved_search_loads_and_searches_on_from_its_weights(tmp_path):
-    """A checkpoint loads with the weights the search stepped to (the policy's and the
-    search's own), so a resumed run searches on from them, not from zero."""
-    from pour_gym.agents.training.ars import PairedARS
-    from pour_gym.agents.training.vector import NativeVecEnv
-
-    venv = NativeVecEnv(POUR_V2, 2, QUICK)
-    try:
-        model = _ars(venv, delta_std=0.1)
-        model.learn(1)  # one update: 2 x 2 candidates, 2 episodes each
-        assert model.weights.abs().sum() > 0
-        model.save(tmp_path / "ars.zip")
-        loaded = PairedARS.load(tmp_path / "ars.zip", env=venv, device="cpu")
-        assert th.equal(loaded.weights, model.weights)
-        flat = th.nn.utils.parameters_to_vector(loaded.policy.parameters()).detach()
-        assert th.equal(flat, model.weights)
-    finally:
-        venv.close()
-
-
 def test_train_py_searches_with_ars_checkpoints_and_evaluates_its_linear_policy(tmp_path):
     """``train.py --algo ars --recipe family`` end to end at a tiny size: the run saves a
-    model that loads and acts by its weights, and running the command again resumes from
+    model that loads with the weights its search stepped to (a resumed run searches on
+    from them, not from zero) and acts by them, and running the command again resumes from
     the finished checkpoint and only evaluates (the same rows)."""
     import json
     import subprocess
