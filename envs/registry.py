@@ -24,6 +24,7 @@ NAMESPACE = "PourGym"
 POUR_V0 = "PourGym/Pour-v0"
 POUR_V1 = "PourGym/Pour-v1"
 POUR_V2 = "PourGym/Pour-v2"
+POUR_V3 = "PourGym/Pour-v3"
 PANDA_POUR_V0 = "PourGym/PandaPour-v0"
 PARTICLE_DROP_V0 = "PourGym/ParticleDrop-v0"
 TILT_POUR_V0 = "PourGym/TiltPour-v0"
@@ -40,6 +41,8 @@ POUR_V1_DEFAULTS = {
 }
 # Pour-v2: Pour-v1 with a slower tilt (the class's Version History says why).
 POUR_V2_DEFAULTS = {**POUR_V1_DEFAULTS, "max_tilt_rate": 20.0}
+# Pour-v3: Pour-v2 tilting back at Pour-v1's 60 deg/s (the class's Version History says why).
+POUR_V3_DEFAULTS = {**POUR_V2_DEFAULTS, "max_untilt_rate": 60.0}
 
 
 @dataclass(frozen=True)
@@ -78,6 +81,9 @@ ENVS: tuple[EnvEntry, ...] = (
     ),
     EnvEntry(
         POUR_V2, "pour_gym.envs.pour:PourEnv", 250, kwargs=POUR_V2_DEFAULTS, quick=_QUICK_POUR
+    ),
+    EnvEntry(
+        POUR_V3, "pour_gym.envs.pour:PourEnv", 250, kwargs=POUR_V3_DEFAULTS, quick=_QUICK_POUR
     ),
     EnvEntry(PARTICLE_DROP_V0, "pour_gym.envs.particle_drop:ParticleDropEnv", 1),
     EnvEntry(TILT_POUR_V0, "pour_gym.envs.tilt_pour:TiltPourEnv", 1),

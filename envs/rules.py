@@ -267,15 +267,23 @@ def outcome(info: Mapping) -> str:
 
 
 def check_motion(
-    max_speed: float, max_tilt_rate: float, max_tilt: float, tilt_control: str, lip_control: str
+    max_speed: float,
+    max_tilt_rate: float,
+    max_tilt: float,
+    tilt_control: str,
+    lip_control: str,
+    max_untilt_rate: float | None = None,
 ) -> None:
-    """Check the source's motion arguments (see ``PourEnv``).
+    """Check the source's motion arguments (see ``PourEnv``; ``max_untilt_rate`` may be None).
 
     Raises:
         InputError: a speed or rate not above 0, a largest tilt outside (0, 180] deg, or an
             unknown form of the tilt or lip action (named, with the forms there are).
     """
-    for name, value in (("max_speed", max_speed), ("max_tilt_rate", max_tilt_rate)):
+    rates = [("max_speed", max_speed), ("max_tilt_rate", max_tilt_rate)]
+    if max_untilt_rate is not None:
+        rates.append(("max_untilt_rate", max_untilt_rate))
+    for name, value in rates:
         if not value > 0:
             raise InputError(f"{name} must be positive, not {value}")
     if not 0 < max_tilt <= 180:
@@ -316,7 +324,7 @@ def onset_tilt(held: np.ndarray, fill: float) -> float:
 
 def next_tilt(
     control: str, action: float, tilt: float, most: float, max_tilt: float,
-    held: np.ndarray | None = None, fill: float = 0.0,
+    held: np.ndarray | None = None, fill: float = 0.0, back: float | None = None,
 ) -> float:  # fmt: skip
     """Where a tilt action takes the source's tilt (deg) in one step.
 
@@ -326,22 +334,24 @@ def next_tilt(
             :func:`onset_goal`, the onset from ``held`` and ``fill``).
         action: the tilt action, in [-1, 1].
         tilt: the tilt now, deg.
-        most: the largest change in one step, deg.
+        most: the largest change in one step, deg (towards ``max_tilt``).
         max_tilt: the largest tilt, deg.
         held: ``"onset"``: what the source holds by tilt (:func:`onset_tilt`), particles.
         fill: ``"onset"``: the fluid in the source, particles.
+        back: the largest change back towards upright in one step, deg (None: ``most``).
 
     Returns:
         The tilt, within [0, ``max_tilt``].
     """
+    back = most if back is None else back
     if control == "rate":
-        tilt = tilt + action * most
+        tilt = tilt + action * (most if action >= 0.0 else back)
     else:
         if control == "angle":
             goal = tilt_goal(action, max_tilt)
         else:
             goal = onset_goal(action, onset_tilt(held, fill), max_tilt)
-        tilt = tilt + np.clip(goal - tilt, -most, most)
+        tilt = tilt + np.clip(goal - tilt, -back, most)
     return float(np.clip(tilt, 0.0, max_tilt))
 
 

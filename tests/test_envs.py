@@ -17,8 +17,9 @@ from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 from pour_gym.agents.policies.rollout import rollout
 from pour_gym.agents.policies.scripted import ScriptedPourPolicy, action_settings
-from pour_gym.envs import ENV_IDS, ENVS, POUR, POUR_V0, POUR_V1, POUR_V2, entry, task_of
-from pour_gym.envs.rules import lip_action, lip_goal, onset_tilt
+from pour_gym.envs import ENV_IDS, ENVS, POUR, POUR_V0, POUR_V1, POUR_V2, POUR_V3, entry, task_of
+from pour_gym.envs.pour import FEATURE_NAMES
+from pour_gym.envs.rules import lip_action, lip_goal, onset_tilt, tilt_goal
 from pour_gym.features import fluid_features, relative_distance_height
 from pour_gym.objects import cylinder_cup
 
@@ -88,20 +89,51 @@ def test_pour_v1_is_pour_v0_with_learnable_defaults_and_hide_blinds_entries(make
         make_env(POUR_V1, objects="red_cup", hide=["lip_x"])  # a state entry, not a feature
 
 
+def _tilts(make_env, env_ids: tuple[str, ...], tilt_actions: list[float]) -> np.ndarray:
+    """The tilt (deg) after each step of each id's env on the red cup, from the same start
+    (seed 3, the same observation checked), the lip held, the tilt actions given."""
+    envs = [make_env(env_id, objects="red_cup") for env_id in env_ids]
+    starts = [env.reset(seed=3)[0] for env in envs]
+    for o in starts[1:]:
+        np.testing.assert_array_equal(o, starts[0])
+    tilt = envs[0].unwrapped.obs_names.index("tilt")
+    return np.array(
+        [
+            [
+                90.0 * env.step(np.array([0, 0, 0, a], dtype=np.float32))[0][tilt]
+                for a in tilt_actions
+            ]
+            for env in envs
+        ]
+    )
+
+
 def test_pour_v2_is_pour_v1_with_a_tilt_three_times_slower(make_env):
     """Pour-v2 changes one default: the tilt rate, 20 deg/s (2 deg a 0.1 s step) for 60."""
     assert gym.spec(POUR_V2).kwargs == {**gym.spec(POUR_V1).kwargs, "max_tilt_rate": 20.0}
-    v1, v2 = make_env(POUR_V1, objects="red_cup"), make_env(POUR_V2, objects="red_cup")
-    o1, _ = v1.reset(seed=3)
-    o2, _ = v2.reset(seed=3)
-    np.testing.assert_array_equal(o1, o2)
-    tilt = v1.unwrapped.obs_names.index("tilt")
-    full = np.array([0.0, 0.0, 0.0, 1.0], dtype=np.float32)  # towards the largest tilt
-    for k in range(1, 4):
-        o1, *_ = v1.step(full)
-        o2, *_ = v2.step(full)
-        assert 90.0 * o1[tilt] == pytest.approx(6.0 * k, abs=1e-3)
-        assert 90.0 * o2[tilt] == pytest.approx(2.0 * k, abs=1e-3)
+    k = np.arange(1, 4)
+    expected = np.array([6.0 * k, 2.0 * k])  # towards the largest tilt
+    np.testing.assert_allclose(_tilts(make_env, (POUR_V1, POUR_V2), [1.0] * 3), expected, atol=1e-3)
+
+
+def test_pour_v3_is_pour_v2_tilting_back_at_60_deg_per_s(make_env):
+    """Pour-v3 changes one default: the tilt back towards upright, 60 deg/s (6 deg a step),
+    the tilt on staying Pour-v2's 20 deg/s; a rate action back is a rate at 60 deg/s."""
+    assert gym.spec(POUR_V3).kwargs == {**gym.spec(POUR_V2).kwargs, "max_untilt_rate": 60.0}
+    k = np.arange(1, 9)  # 12 deg on, then back
+    on, back = 2.0 * np.minimum(k, 6), np.maximum(k - 6, 0)
+    expected = np.array([on - 2.0 * back, on - 6.0 * back])
+    tilts = _tilts(make_env, (POUR_V2, POUR_V3), [1.0] * 6 + [-1.0] * 2)
+    np.testing.assert_allclose(tilts, expected, atol=1e-3)
+    rate = make_env(POUR_V0, objects="red_cup", max_tilt_rate=20.0, max_untilt_rate=60.0)
+    rate.reset(seed=3)
+    env = rate.unwrapped
+    goal = env.commanded(np.array([0.0, 0.0, 0.0, 1.0]))[1]
+    assert goal == pytest.approx(env.tilt + 2.0)
+    env.tilt = 30.0
+    assert env.commanded(np.array([0.0, 0.0, 0.0, -0.5]))[1] == pytest.approx(27.0)
+    with pytest.raises(ValueError, match="max_untilt_rate must be positive"):
+        make_env(POUR_V0, objects="red_cup", max_untilt_rate=0.0)
 
 
 @pytest.mark.parametrize("env_id", ENV_IDS)
@@ -289,6 +321,25 @@ def test_the_scripted_policy_keeps_its_tilt_rates_in_deg_per_s_on_pour_v2(make_e
     env = make_env(POUR_V2, objects="pybullet_mug", source_particles=None, amount_range=None)
     for seed in (10000, 10001):
         info = rollout(env, slow, seed=seed).info
+        assert info["is_success"] and info["spilled"] == 0, info
+
+
+def test_the_scripted_policy_tilts_back_at_pour_v3s_rate(make_env):
+    """On Pour-v3 the expert tilts on as on Pour-v2 and back as on Pour-v1 (its lead too:
+    tilting back takes as long as at 60 deg/s), and pours the pybullet mug full size."""
+    v1, v2, v3 = (ScriptedPourPolicy(**action_settings(v)) for v in (POUR_V1, POUR_V2, POUR_V3))
+    assert v3.untilt_rate == 60.0 and v2.untilt_rate == 20.0
+    (_, back1, lead1), (slow2, _, _), (slow3, back3, lead3) = (p.tilt_rates() for p in (v1, v2, v3))
+    assert slow3 == slow2 and (back3, lead3) == (back1, lead1)
+    # A back action names a tilt at the rate back: 6 deg a step from 45 deg.
+    v3.phase = "back"
+    obs = np.zeros(len(FEATURE_NAMES), dtype=np.float32)
+    obs[FEATURE_NAMES.index("tilt")] = 0.5
+    goal = tilt_goal(float(v3(obs)[3]), v3.max_tilt)
+    assert goal == pytest.approx(45.0 - 6.0, abs=1e-4)
+    env = make_env(POUR_V3, objects="pybullet_mug", source_particles=None, amount_range=None)
+    for seed in (10000, 10001):
+        info = rollout(env, v3, seed=seed).info
         assert info["is_success"] and info["spilled"] == 0, info
 
 

@@ -106,6 +106,18 @@ def test_the_rate_and_angle_actions_move_the_tilt_as_they_did():
         assert next_tilt("angle", a, tilt, 6.0, 135.0) == float(np.clip(step, 0, 135))
 
 
+def test_a_faster_tilt_back_moves_only_towards_upright():
+    """``back`` (max_untilt_rate's step) bounds the steps back; the steps on keep ``most``."""
+    held = np.linspace(1000.0, 0.0, 136)
+    for control in ("rate", "angle", "onset"):
+        assert next_tilt(control, 1.0, 60.0, 2.0, 135.0, held, 500.0, back=6.0) == 62.0
+        assert next_tilt(control, -1.0, 60.0, 2.0, 135.0, held, 500.0, back=6.0) == 54.0
+        assert next_tilt(control, -1.0, 4.0, 2.0, 135.0, held, 500.0, back=6.0) == 0.0
+    # From 60 deg towards 57.5 deg (a zero angle action): the goal is nearer than a step.
+    assert next_tilt("angle", 0.0, 60.0, 2.0, 135.0, back=6.0) == pytest.approx(57.5)
+    assert next_tilt("rate", -0.5, 60.0, 2.0, 135.0, back=6.0) == 57.0
+
+
 def test_the_episode_amounts_fit_both_containers():
     rng = np.random.default_rng(0)
     # Sized to the task: the amount drawn within the range and both capacities, the fill

@@ -29,6 +29,7 @@ TILT_FORMS = ("rate", "angle")
 ACTION_SETTINGS = {
     "tilt_control": "tilt_control",
     "max_tilt_rate": "max_tilt_rate",
+    "max_untilt_rate": "max_untilt_rate",
     "max_tilt": "max_tilt",
     "lip_control": "lip_control",
     "lip_speed": "max_speed",
@@ -89,6 +90,8 @@ class ScriptedPourPolicy:
             at the same rate. :func:`action_settings` reads it and the next four from an
             env id.
         max_tilt_rate: the env's ``max_tilt_rate``, deg/s (``"angle"`` only).
+        max_untilt_rate: the env's ``max_untilt_rate``, deg/s (None: ``max_tilt_rate``):
+            a negative action is a rate back at it.
         max_tilt: the env's ``max_tilt``, deg (``"angle"`` only).
         lip_control: the env's lip action, ``"velocity"`` or ``"target"``: the policy
             decides a velocity and, for ``"target"``, names the place one step at that
@@ -98,9 +101,10 @@ class ScriptedPourPolicy:
         dt: the env's step, s (``"angle"`` and ``"target"`` only).
         tuned_tilt_rate: the ``max_tilt_rate`` (deg/s) at which ``slow_rate``,
             ``back_rate`` and ``lead`` hold as given. At another rate the policy keeps
-            their meaning in deg/s and seconds: the slow and back rates scaled by
-            ``tuned_tilt_rate / max_tilt_rate`` (at most 1, the fastest tilt), the lead by
-            the same ratio (a slower tilt back lets more run out). Full-rate phases (to
+            their meaning in deg/s and seconds: the slow rate scaled by
+            ``tuned_tilt_rate / max_tilt_rate`` (at most 1, the fastest tilt), the back rate
+            by ``tuned_tilt_rate`` over the rate back (``max_untilt_rate``), the lead by
+            that ratio too (a slower tilt back lets more run out). Full-rate phases (to
             the lip's fluid, back for good) go as fast as the env allows.
     """
 
@@ -118,6 +122,7 @@ class ScriptedPourPolicy:
     start_ramp: float = 0.1
     tilt_control: str = "rate"
     max_tilt_rate: float = 60.0
+    max_untilt_rate: float | None = None
     max_tilt: float = 135.0
     lip_control: str = "velocity"
     lip_speed: float = 0.15
@@ -132,10 +137,10 @@ class ScriptedPourPolicy:
             )
         if self.lip_control not in LIP_CONTROLS:
             raise InputError(f"lip_control must be one of {LIP_CONTROLS}, not {self.lip_control!r}")
-        if not self.max_tilt_rate > 0 or not self.tuned_tilt_rate > 0:
+        if not self.max_tilt_rate > 0 or not self.tuned_tilt_rate > 0 or not self.untilt_rate > 0:
             raise InputError(
-                "max_tilt_rate and tuned_tilt_rate must be > 0 deg/s, not "
-                f"{self.max_tilt_rate} and {self.tuned_tilt_rate}"
+                "max_tilt_rate, max_untilt_rate and tuned_tilt_rate must be > 0 deg/s, not "
+                f"{self.max_tilt_rate}, {self.max_untilt_rate} and {self.tuned_tilt_rate}"
             )
         self.reset()
 
@@ -148,12 +153,20 @@ class ScriptedPourPolicy:
         Returns:
             (slow rate, back rate, lead in steps).
         """
-        scale = self.tuned_tilt_rate / self.max_tilt_rate
+        scale, back = (
+            self.tuned_tilt_rate / self.max_tilt_rate,
+            self.tuned_tilt_rate / self.untilt_rate,
+        )
         return (
             min(self.slow_rate * scale, 1.0),
-            min(self.back_rate * scale, 1.0),
-            self.lead * scale,
+            min(self.back_rate * back, 1.0),
+            self.lead * back,
         )
+
+    @property
+    def untilt_rate(self) -> float:
+        """The env's fastest tilt back, deg/s."""
+        return self.max_tilt_rate if self.max_untilt_rate is None else self.max_untilt_rate
 
     def reset(self) -> None:
         """Forget the episode (call at every environment reset)."""
@@ -165,7 +178,8 @@ class ScriptedPourPolicy:
         """The action for one features observation."""
         action = self._rate_action(np.asarray(obs, dtype=np.float64))
         if self.tilt_control == "angle":
-            goal = 90.0 * obs[_I["tilt"]] + action[3] * self.max_tilt_rate * self.dt
+            rate = self.max_tilt_rate if action[3] >= 0.0 else self.untilt_rate
+            goal = 90.0 * obs[_I["tilt"]] + action[3] * rate * self.dt
             action[3] = np.clip(tilt_action(goal, self.max_tilt), -1.0, 1.0)
         if self.lip_control == "target":
             # Where one step at that velocity takes the lip, from the target's rim centre
