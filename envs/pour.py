@@ -29,6 +29,7 @@ from pour_gym.envs.rules import (
     pour_counts,
     shaping_potentials,
     tolerance,
+    untilt_rate,
 )
 from pour_gym.envs.task import POUR
 from pour_gym.errors import InputError
@@ -482,7 +483,7 @@ class PourEnv(PourGymEnv):
     @property
     def untilt_rate(self) -> float:
         """The fastest tilt back towards upright, deg/s (``max_untilt_rate`` or the same)."""
-        return self.max_tilt_rate if self.max_untilt_rate is None else self.max_untilt_rate
+        return untilt_rate(self.max_tilt_rate, self.max_untilt_rate)
 
     def commanded(self, a: np.ndarray) -> tuple[np.ndarray, float]:
         """Where an action sends the lip (m) and the tilt (deg) from where they are now.

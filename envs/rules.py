@@ -322,6 +322,11 @@ def onset_tilt(held: np.ndarray, fill: float) -> float:
     return float(np.interp(fill, held[::-1], tilts[::-1]))
 
 
+def untilt_rate(max_tilt_rate: float, max_untilt_rate: float | None) -> float:
+    """The fastest tilt back towards upright, deg/s (``max_untilt_rate``, None: on's)."""
+    return max_tilt_rate if max_untilt_rate is None else max_untilt_rate
+
+
 def next_tilt(
     control: str, action: float, tilt: float, most: float, max_tilt: float,
     held: np.ndarray | None = None, fill: float = 0.0, back: float | None = None,

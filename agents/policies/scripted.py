@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from pour_gym.envs.pour import FEATURE_NAMES
-from pour_gym.envs.rules import LIP_CONTROLS, lip_action, tilt_action
+from pour_gym.envs.rules import LIP_CONTROLS, lip_action, tilt_action, untilt_rate
 from pour_gym.errors import InputError
 
 _I = {name: k for k, name in enumerate(FEATURE_NAMES)}
@@ -166,7 +166,7 @@ class ScriptedPourPolicy:
     @property
     def untilt_rate(self) -> float:
         """The env's fastest tilt back, deg/s."""
-        return self.max_tilt_rate if self.max_untilt_rate is None else self.max_untilt_rate
+        return untilt_rate(self.max_tilt_rate, self.max_untilt_rate)
 
     def reset(self) -> None:
         """Forget the episode (call at every environment reset)."""
