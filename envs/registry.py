@@ -25,6 +25,7 @@ POUR_V0 = "PourGym/Pour-v0"
 POUR_V1 = "PourGym/Pour-v1"
 POUR_V2 = "PourGym/Pour-v2"
 POUR_V3 = "PourGym/Pour-v3"
+POUR_V4 = "PourGym/Pour-v4"
 PANDA_POUR_V0 = "PourGym/PandaPour-v0"
 PARTICLE_DROP_V0 = "PourGym/ParticleDrop-v0"
 TILT_POUR_V0 = "PourGym/TiltPour-v0"
@@ -43,6 +44,7 @@ POUR_V1_DEFAULTS = {
 POUR_V2_DEFAULTS = {**POUR_V1_DEFAULTS, "max_tilt_rate": 20.0}
 # Pour-v3: Pour-v2 tilting back at Pour-v1's 60 deg/s (the class's Version History says why).
 POUR_V3_DEFAULTS = {**POUR_V2_DEFAULTS, "max_untilt_rate": 60.0}
+POUR_V4_DEFAULTS = {**POUR_V3_DEFAULTS, "stand_below": 0.5}
 
 
 @dataclass(frozen=True)
@@ -84,6 +86,9 @@ ENVS: tuple[EnvEntry, ...] = (
     ),
     EnvEntry(
         POUR_V3, "pour_gym.envs.pour:PourEnv", 250, kwargs=POUR_V3_DEFAULTS, quick=_QUICK_POUR
+    ),
+    EnvEntry(
+        POUR_V4, "pour_gym.envs.pour:PourEnv", 250, kwargs=POUR_V4_DEFAULTS, quick=_QUICK_POUR
     ),
     EnvEntry(PARTICLE_DROP_V0, "pour_gym.envs.particle_drop:ParticleDropEnv", 1),
     EnvEntry(TILT_POUR_V0, "pour_gym.envs.tilt_pour:TiltPourEnv", 1),

@@ -273,12 +273,14 @@ def check_motion(
     tilt_control: str,
     lip_control: str,
     max_untilt_rate: float | None = None,
+    stand_below: float | None = None,
 ) -> None:
-    """Check the source's motion arguments (see ``PourEnv``; ``max_untilt_rate`` may be None).
+    """Check the source's motion arguments (see ``PourEnv``; the last two may be None).
 
     Raises:
-        InputError: a speed or rate not above 0, a largest tilt outside (0, 180] deg, or an
-            unknown form of the tilt or lip action (named, with the forms there are).
+        InputError: a speed or rate not above 0, a largest tilt outside (0, 180] deg, an
+            unknown form of the tilt or lip action (named, with the forms there are), or a
+            ``stand_below`` outside (0, 1] or with ``tilt_control="rate"``.
     """
     rates = [("max_speed", max_speed), ("max_tilt_rate", max_tilt_rate)]
     if max_untilt_rate is not None:
@@ -292,6 +294,16 @@ def check_motion(
         raise InputError(f"tilt_control must be one of {TILT_CONTROLS}, not {tilt_control!r}")
     if lip_control not in LIP_CONTROLS:
         raise InputError(f"lip_control must be one of {LIP_CONTROLS}, not {lip_control!r}")
+    if stand_below is not None:
+        if not 0 < stand_below <= 1:
+            raise InputError(
+                f"stand_below is a fraction of the onset tilt in (0, 1], not {stand_below}"
+            )
+        if tilt_control == "rate":
+            raise InputError(
+                "stand_below applies to the tilts an action names: give tilt_control="
+                "'angle' or 'onset' with it (a 'rate' action names no tilt)"
+            )
 
 
 def tilt_goal(action: float, max_tilt: float) -> float:
@@ -330,6 +342,7 @@ def untilt_rate(max_tilt_rate: float, max_untilt_rate: float | None) -> float:
 def next_tilt(
     control: str, action: float, tilt: float, most: float, max_tilt: float,
     held: np.ndarray | None = None, fill: float = 0.0, back: float | None = None,
+    stand_below: float | None = None,
 ) -> float:  # fmt: skip
     """Where a tilt action takes the source's tilt (deg) in one step.
 
@@ -344,6 +357,8 @@ def next_tilt(
         held: ``"onset"``: what the source holds by tilt (:func:`onset_tilt`), particles.
         fill: ``"onset"``: the fluid in the source, particles.
         back: the largest change back towards upright in one step, deg (None: ``most``).
+        stand_below: ``"angle"`` and ``"onset"``: a goal below this fraction of the onset
+            (from ``held`` and ``fill``) is upright (None: every goal as named).
 
     Returns:
         The tilt, within [0, ``max_tilt``].
@@ -352,10 +367,15 @@ def next_tilt(
     if control == "rate":
         tilt = tilt + action * (most if action >= 0.0 else back)
     else:
+        onset = None if held is None else onset_tilt(held, fill)
         if control == "angle":
             goal = tilt_goal(action, max_tilt)
         else:
-            goal = onset_goal(action, onset_tilt(held, fill), max_tilt)
+            goal = onset_goal(action, onset, max_tilt)
+        if stand_below is not None and goal < stand_below * onset:
+            # Well below the onset nothing pours: holding there only waits, and a finished
+            # pour stands up (a held tilt short of upright leaves the episode unfinished).
+            goal = 0.0
         tilt = tilt + np.clip(goal - tilt, -back, most)
     return float(np.clip(tilt, 0.0, max_tilt))
 

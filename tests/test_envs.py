@@ -17,9 +17,20 @@ from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 from pour_gym.agents.policies.rollout import rollout
 from pour_gym.agents.policies.scripted import ScriptedPourPolicy, action_settings
-from pour_gym.envs import ENV_IDS, ENVS, POUR, POUR_V0, POUR_V1, POUR_V2, POUR_V3, entry, task_of
+from pour_gym.envs import (
+    ENV_IDS,
+    ENVS,
+    POUR,
+    POUR_V0,
+    POUR_V1,
+    POUR_V2,
+    POUR_V3,
+    POUR_V4,
+    entry,
+    task_of,
+)
 from pour_gym.envs.pour import FEATURE_NAMES
-from pour_gym.envs.rules import lip_action, lip_goal, onset_tilt, tilt_goal
+from pour_gym.envs.rules import lip_action, lip_goal, onset_tilt, tilt_action, tilt_goal
 from pour_gym.features import fluid_features, relative_distance_height
 from pour_gym.objects import cylinder_cup
 
@@ -29,7 +40,7 @@ def test_every_registered_id_is_in_the_registry_list_the_generic_tests_use():
     registered under PourGym/ anywhere else would escape them, so none may be."""
     registered = {env_id for env_id in gym.registry if env_id.startswith("PourGym/")}
     assert registered == set(ENV_IDS) == {e.id for e in ENVS}
-    assert len(ENV_IDS) == len(set(ENV_IDS)) == 7
+    assert len(ENV_IDS) == len(set(ENV_IDS)) == 8
     for e in ENVS:
         spec = gym.spec(e.id)
         assert spec.entry_point == e.entry_point
@@ -135,6 +146,35 @@ def test_pour_v3_is_pour_v2_tilting_back_at_60_deg_per_s(make_env):
     assert env.commanded(np.array([0.0, 0.0, 0.0, -0.5]))[1] == pytest.approx(27.0)
     with pytest.raises(ValueError, match="max_untilt_rate must be positive"):
         make_env(POUR_V0, objects="red_cup", max_untilt_rate=0.0)
+
+
+def test_pour_v4_is_pour_v3_standing_up_below_half_the_onset(make_env):
+    """Pour-v4 changes one default: once the source has poured, a tilt named below half its
+    onset is upright; before, and above it, tilts are Pour-v3's. The red cup (300
+    particles: onset 65 deg) tilted towards 90 deg until it pours, then 20 deg named."""
+    assert gym.spec(POUR_V4).kwargs == {**gym.spec(POUR_V3).kwargs, "stand_below": 0.5}
+    pour, named_20 = (np.array([0, 0, 0, tilt_action(g, 135.0)], np.float32) for g in (90, 20))
+    before = _tilts(make_env, (POUR_V3, POUR_V4), [float(named_20[3])] * 6)
+    np.testing.assert_allclose(before, [2.0 * np.arange(1, 7)] * 2, atol=1e-3)  # both on
+    tilts = []
+    for env_id in (POUR_V3, POUR_V4):
+        env = make_env(env_id, objects="red_cup")
+        env.reset(seed=3)
+        info = {"poured_any": False}
+        for _ in range(80):
+            if info["poured_any"]:
+                break
+            info = env.step(pour)[-1]
+        assert info["poured_any"]
+        start = env.unwrapped.tilt
+        tilts.append([env.step(named_20) and env.unwrapped.tilt for _ in range(10)])
+    k = np.arange(1, 11)  # back at 6 deg a step
+    np.testing.assert_allclose(
+        tilts, [np.maximum(start - 6.0 * k, 20.0), np.maximum(start - 6.0 * k, 0.0)]
+    )
+    assert tilts[1][-1] < 19.0 and tilts[0][-1] == pytest.approx(20.0)  # v4 went on past 20
+    with pytest.raises(ValueError, match="stand_below applies to the tilts an action names"):
+        make_env(POUR_V0, objects="red_cup", stand_below=0.5)
 
 
 @pytest.mark.parametrize("env_id", ENV_IDS)
@@ -327,7 +367,8 @@ def test_the_scripted_policy_keeps_its_tilt_rates_in_deg_per_s_on_pour_v2(make_e
 
 def test_the_scripted_policy_tilts_back_at_pour_v3s_rate(make_env):
     """On Pour-v3 the expert tilts on as on Pour-v2 and back as on Pour-v1 (its lead too:
-    tilting back takes as long as at 60 deg/s), and pours the pybullet mug full size."""
+    tilting back takes as long as at 60 deg/s), and pours the pybullet mug full size, on
+    Pour-v4 too."""
     v1, v2, v3 = (ScriptedPourPolicy(**action_settings(v)) for v in (POUR_V1, POUR_V2, POUR_V3))
     assert v3.untilt_rate == 60.0 and v2.untilt_rate == 20.0
     (_, back1, lead1), (slow2, _, _), (slow3, back3, lead3) = (p.tilt_rates() for p in (v1, v2, v3))
@@ -338,10 +379,13 @@ def test_the_scripted_policy_tilts_back_at_pour_v3s_rate(make_env):
     obs[FEATURE_NAMES.index("tilt")] = 0.5
     goal = tilt_goal(float(v3(obs)[3]), v3.max_tilt)
     assert goal == pytest.approx(45.0 - 6.0, abs=1e-4)
-    env = make_env(POUR_V3, objects="pybullet_mug", source_particles=None, amount_range=None)
-    for seed in (10000, 10001):
-        info = rollout(env, v3, seed=seed).info
-        assert info["is_success"] and info["spilled"] == 0, info
+    # Pour-v4 (standing up below half the onset once poured) takes the expert's pour as it is.
+    assert action_settings(POUR_V4) == action_settings(POUR_V3)
+    for env_id in (POUR_V3, POUR_V4):
+        env = make_env(env_id, objects="pybullet_mug", source_particles=None, amount_range=None)
+        for seed in (10000, 10001):
+            info = rollout(env, v3, seed=seed).info
+            assert info["is_success"] and info["spilled"] == 0, (env_id, info)
 
 
 @pytest.mark.parametrize("obs_mode", ["features", "state"])

@@ -10,6 +10,7 @@ from pour_gym.envs.rules import (
     RESTING_SPEED,
     UPRIGHT_BAND,
     amount_terms,
+    check_motion,
     episode_amounts,
     episode_end,
     next_tilt,
@@ -116,6 +117,31 @@ def test_a_faster_tilt_back_moves_only_towards_upright():
     # From 60 deg towards 57.5 deg (a zero angle action): the goal is nearer than a step.
     assert next_tilt("angle", 0.0, 60.0, 2.0, 135.0, back=6.0) == pytest.approx(57.5)
     assert next_tilt("rate", -0.5, 60.0, 2.0, 135.0, back=6.0) == 57.0
+
+
+def test_a_tilt_named_well_below_the_onset_stands_the_source_up():
+    """``stand_below`` (Pour-v4's 0.5): a goal below that fraction of the onset is upright."""
+    held = np.linspace(1000.0, 0.0, 136)  # 500 particles reach the mouth at 67.5 deg
+    assert onset_tilt(held, 500.0) == pytest.approx(67.5)
+    named_30 = tilt_action(30.0, 135.0)  # below 33.75 deg, half the onset
+    for stand, after in ((None, 30.0), (0.5, 26.0)):
+        assert next_tilt("angle", named_30, 32.0, 2.0, 135.0, held, 500.0, 6.0, stand) == after
+    # Above half the onset a goal is as named; so is every goal without the onset's table.
+    assert (
+        next_tilt("angle", tilt_action(40.0, 135.0), 32.0, 2.0, 135.0, held, 500.0, 6.0, 0.5)
+        == 34.0
+    )
+    assert next_tilt("angle", named_30, 32.0, 2.0, 135.0, back=6.0) == 30.0
+    # The onset form: -0.5 names 23.75 deg here, so it stands up; 0 names the onset.
+    assert next_tilt("onset", -0.5, 20.0, 2.0, 135.0, held, 500.0, 6.0, 0.5) == 14.0
+    assert next_tilt("onset", 0.0, 66.0, 2.0, 135.0, held, 500.0, 6.0, 0.5) == pytest.approx(67.5)
+    # A fuller source reaches its mouth sooner: its half onset is lower.
+    assert next_tilt("angle", named_30, 32.0, 2.0, 135.0, held, 700.0, 6.0, 0.5) == 30.0
+    for bad, match in ((0.0, r"in \(0, 1\]"), (1.5, r"in \(0, 1\]")):
+        with pytest.raises(InputError, match=match):
+            check_motion(0.15, 60.0, 135.0, "angle", "velocity", stand_below=bad)
+    with pytest.raises(InputError, match="tilt_control='angle' or 'onset'"):
+        check_motion(0.15, 60.0, 135.0, "rate", "velocity", stand_below=0.5)
 
 
 def test_the_episode_amounts_fit_both_containers():
