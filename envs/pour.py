@@ -159,7 +159,7 @@ class PourEnv(PourGymEnv):
     | ``max_tilt_rate`` | float | 60.0 | tilt rate at action 1, deg/s |
     | ``max_untilt_rate`` | float or None | None | tilt rate back at action -1, deg/s (None: same) |
     | ``max_tilt`` | float | 135.0 | largest tilt, deg |
-    | ``stand_below`` | float or None | None | poured: a tilt named below this x onset is 0 |
+    | ``stand_below`` | float or None | None | after the pour: named tilts < this x onset upright |
     | ``tilt_control`` | str | ``"rate"`` | the tilt action: ``"rate"``, ``"angle"``, ``"onset"`` |
     | ``lip_control`` | str | ``"velocity"`` | the lip action: ``"velocity"`` or ``"target"`` |
     | ``pour_threshold`` | int | 5 | particles out of the source that make a pour |

@@ -44,6 +44,8 @@ POUR_V1_DEFAULTS = {
 POUR_V2_DEFAULTS = {**POUR_V1_DEFAULTS, "max_tilt_rate": 20.0}
 # Pour-v3: Pour-v2 tilting back at Pour-v1's 60 deg/s (the class's Version History says why).
 POUR_V3_DEFAULTS = {**POUR_V2_DEFAULTS, "max_untilt_rate": 60.0}
+# Pour-v4: Pour-v3 standing the source up once it has poured, for a tilt named below half
+# its onset (the class's Version History says why).
 POUR_V4_DEFAULTS = {**POUR_V3_DEFAULTS, "stand_below": 0.5}
 
 

@@ -362,7 +362,12 @@ def next_tilt(
 
     Returns:
         The tilt, within [0, ``max_tilt``].
+
+    Raises:
+        InputError: ``stand_below`` or the onset form without ``held``.
     """
+    if held is None and (stand_below is not None or control == "onset"):
+        raise InputError("the onset form and stand_below need held (what the source holds)")
     back = most if back is None else back
     if control == "rate":
         tilt = tilt + action * (most if action >= 0.0 else back)

@@ -167,7 +167,11 @@ def test_pour_v4_is_pour_v3_standing_up_below_half_the_onset(make_env):
             info = env.step(pour)[-1]
         assert info["poured_any"]
         start = env.unwrapped.tilt
-        tilts.append([env.step(named_20) and env.unwrapped.tilt for _ in range(10)])
+        back = []
+        for _ in range(10):
+            env.step(named_20)
+            back.append(env.unwrapped.tilt)
+        tilts.append(back)
     k = np.arange(1, 11)  # back at 6 deg a step
     np.testing.assert_allclose(
         tilts, [np.maximum(start - 6.0 * k, 20.0), np.maximum(start - 6.0 * k, 0.0)]

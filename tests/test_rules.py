@@ -142,6 +142,8 @@ def test_a_tilt_named_well_below_the_onset_stands_the_source_up():
             check_motion(0.15, 60.0, 135.0, "angle", "velocity", stand_below=bad)
     with pytest.raises(InputError, match="tilt_control='angle' or 'onset'"):
         check_motion(0.15, 60.0, 135.0, "rate", "velocity", stand_below=0.5)
+    with pytest.raises(InputError, match="need held"):
+        next_tilt("angle", named_30, 32.0, 2.0, 135.0, back=6.0, stand_below=0.5)
 
 
 def test_the_episode_amounts_fit_both_containers():
