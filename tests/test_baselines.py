@@ -75,20 +75,24 @@ def test_report_groups_seeds_and_gives_intervals_over_them(tmp_path):
 
 def test_runs_of_different_recipes_are_rows_apart_and_overrides_are_named(tmp_path):
     """Two recipes of one algorithm (say ppo/family and ppo/family-schedule) are different
-    ways of training, not seeds of one; a run with ``--set`` is a row of its own too."""
-    for name, recipe, overrides in (("a_s0", "family", {}), ("a_s1", "family", {}),
-                                    ("b_s0", "family-schedule", {}),
-                                    ("c_s0", "family", {"target_kl": 0.05})):  # fmt: skip
+    ways of training, not seeds of one; a run with ``--set`` or ``--env-kwargs`` is a row
+    of its own too."""
+    runs = (("a_s0", "family", {}, {}), ("a_s1", "family", {}, {}),
+            ("b_s0", "family-schedule", {}, {}), ("c_s0", "family", {"target_kl": 0.05}, {}),
+            ("d_s0", "family", {}, {"time_weight": 0.004}))  # fmt: skip
+    for name, recipe, overrides, env in runs:
         folder = tmp_path / "runs" / name
         _run(folder, int(name[-1]), 0.5, algo="ppo")
         config = json.loads((folder / "config.json").read_text())
         config.update(recipe=recipe, overrides=overrides)
+        config["env_kwargs"] = {"obs_mode": "features", **env}
         (folder / "config.json").write_text(json.dumps(config))
     paths = {"summaries": tmp_path / "sum", "report": tmp_path / "b.md",
              "curves": tmp_path / "b" / "curves.png"}  # fmt: skip
     doc = baselines_report([tmp_path / "runs"], **paths)
     seeds = {r["recipe"]: r["seeds"] for r in doc["rows"]}
-    assert seeds == {"family": [0, 1], "family-schedule": [0], "family + 1 --set": [0]}
+    assert seeds == {"family": [0, 1], "family-schedule": [0], "family + 1 --set": [0],
+                     "family, time_weight=0.004": [0]}  # fmt: skip
     assert "| Pour-v1 | PPO | family-schedule | features | reward |" in paths["report"].read_text()
 
 

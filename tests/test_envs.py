@@ -52,10 +52,10 @@ def test_every_registered_id_is_in_the_registry_list_the_generic_tests_use():
 
 
 def test_each_env_names_its_task_and_the_task_scores_an_episode():
-    assert [task_of(e) for e in ENV_IDS] == [POUR, POUR, POUR, POUR,
+    assert [task_of(e) for e in ENV_IDS] == [POUR, POUR, POUR, POUR, POUR,
                                             task_of("PourGym/ParticleDrop-v0"),
                                             task_of("PourGym/TiltPour-v0"), POUR]  # fmt: skip
-    assert [task_of(e).pours for e in ENV_IDS] == [True, True, True, True, False, False, True]
+    assert [task_of(e).pours for e in ENV_IDS] == [True, True, True, True, True, False, False, True]
     info = {"is_success": True, "poured": 95, "target_amount": 100, "spilled": 2,
             "fluid_corrections": 7}  # fmt: skip
     assert POUR.metrics(info, 1.5) == {

@@ -70,11 +70,14 @@ def recipe_name(config: dict) -> str:
     """The run's ``agents/hyperparams.yaml`` recipe as the report names it.
 
     ``"family-schedule"``, followed by ``" + 2 --set"`` where the run overrode arguments of
-    it; ``"-"`` for a run trained without one.
+    it and by the env arguments given with ``--env-kwargs`` (``", time_weight=0.004"``;
+    the observation is a column of its own); ``"-"`` for a run trained without one.
     """
     recipe = config.get("recipe") or "-"
     overrides = config.get("overrides") or {}
-    return recipe + (f" + {len(overrides)} --set" if overrides else "")
+    env = {k: v for k, v in (config.get("env_kwargs") or {}).items() if k != "obs_mode"}
+    given = "".join(f", {k}={v}" for k, v in sorted(env.items()))
+    return recipe + (f" + {len(overrides)} --set" if overrides else "") + given
 
 
 def model_kind(config: dict) -> str:
