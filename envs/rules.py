@@ -372,7 +372,9 @@ def next_tilt(
     if control == "rate":
         tilt = tilt + action * (most if action >= 0.0 else back)
     else:
-        onset = None if held is None else onset_tilt(held, fill)
+        # The onset (an interpolation over the tilts) only where the action needs it.
+        needs = control == "onset" or stand_below is not None
+        onset = onset_tilt(held, fill) if needs else None
         if control == "angle":
             goal = tilt_goal(action, max_tilt)
         else:
