@@ -359,6 +359,7 @@ def next_tilt(
         back: the largest change back towards upright in one step, deg (None: ``most``).
         stand_below: ``"angle"`` and ``"onset"``: a goal below this fraction of the onset
             (from ``held`` and ``fill``) is upright (None: every goal as named).
+            ``PourEnv`` passes it once the episode's pour has begun, None before.
 
     Returns:
         The tilt, within [0, ``max_tilt``].
