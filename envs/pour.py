@@ -504,6 +504,19 @@ class PourEnv(PourGymEnv):
 
     # ------------------------------------------------------------------ the source's motion
     @property
+    def time_weight(self) -> float:
+        """The weight of the reward's ``time`` term, a cost for each step.
+
+        Settable, so that a training schedule (a recipe's ``env_schedule``) can charge it
+        from a step count on; each step reads it.
+        """
+        return self.reward_weights["time"]
+
+    @time_weight.setter
+    def time_weight(self, value: float) -> None:
+        self._add_reward_weights({"time": value})
+
+    @property
     def untilt_rate(self) -> float:
         """The fastest tilt back towards upright, deg/s (``max_untilt_rate`` or the same)."""
         return untilt_rate(self.max_tilt_rate, self.max_untilt_rate)

@@ -761,6 +761,15 @@ def test_an_env_schedule_sets_the_tilt_rate_of_every_training_env_by_step(vec):
         assert venv.get_attr("max_tilt_rate") == [60.0, 60.0]
         model.learn(128, callback=schedule_callback(schedule), reset_num_timesteps=False)
         assert venv.get_attr("max_tilt_rate") == [20.0, 20.0]
+        # A cost for each step from a step count on: the env's own weight (0) before it.
+        (cost,) = StepSchedule.all_from_recipe("env_schedule", {"time_weight": [[384, 0.5]]})
+        model.learn(128, callback=schedule_callback(cost), reset_num_timesteps=False)
+        assert venv.get_attr("time_weight") == [0.0, 0.0]
+        model.learn(128, callback=schedule_callback(cost), reset_num_timesteps=False)
+        assert venv.get_attr("time_weight") == [0.5, 0.5]
+        venv.reset()
+        _, _, _, infos = venv.step(np.zeros((2, *venv.action_space.shape), np.float32))
+        assert [info["reward_time"] for info in infos] == [-0.5, -0.5]
     finally:
         venv.close()
     drop = training_vec_env("PourGym/TiltPour-v0", 1, 3, {"objects": "red_cup"}, None, "dummy")

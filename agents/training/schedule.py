@@ -9,6 +9,11 @@ lets a run train at one value first and the env's own later::
 
     env_schedule: {max_tilt_rate: [[0, 60], [500000, 20]]}
 
+A cost for each step (the reward's ``time_weight``) from a step count on, the env's own
+weight (0 by default) before its first point::
+
+    env_schedule: {time_weight: [[500000, 0.004]]}
+
 The two lineages that reached 0.62-0.66 over the family added PPO's ``target_kl`` only
 once their pour was found; from the first update it stopped nearly every update after one
 epoch, and two runs from scratch found the pour and lost it. ``algo_schedule`` sets an
@@ -68,6 +73,9 @@ SUCCESS_WINDOW = 100
 SCHEDULABLE = {
     "env_schedule": {
         "max_tilt_rate": ("the source's fastest tilt, deg/s (read by every step)", False, None),
+        # Before a schedule's first point the env's own weight holds (0 by default), so a
+        # cost from a step count on is [[from_step, weight]].
+        "time_weight": ("the reward's cost for each step (read by every step)", False, None),
     },
     "algo_schedule": {
         "target_kl": (
