@@ -538,7 +538,11 @@ def test_a_sampling_policy_is_the_same_for_the_same_seed_and_leaves_torch_alone(
 
 @pytest.mark.parametrize(
     ("name", "env_id"),
-    [("pour-v1-family-sde", "PourGym/Pour-v1"), ("pour-v2-family", "PourGym/Pour-v2")],
+    [
+        ("pour-v1-family-sde", "PourGym/Pour-v1"),
+        ("pour-v2-family", "PourGym/Pour-v2"),
+        ("pour-v4-family", "PourGym/Pour-v4"),
+    ],
 )
 def test_the_shipped_family_policies_act_by_their_mean_and_name_no_container_trained_on(
     name, env_id
