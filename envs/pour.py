@@ -502,7 +502,6 @@ class PourEnv(PourGymEnv):
         """The episode's target container (on the table)."""
         return self._placed["target"]
 
-    # ------------------------------------------------------------------ the source's motion
     @property
     def time_weight(self) -> float:
         """The weight of the reward's ``time`` term, a cost for each step.
@@ -516,6 +515,7 @@ class PourEnv(PourGymEnv):
     def time_weight(self, value: float) -> None:
         self._add_reward_weights({"time": value})
 
+    # ------------------------------------------------------------------ the source's motion
     @property
     def untilt_rate(self) -> float:
         """The fastest tilt back towards upright, deg/s (``max_untilt_rate`` or the same)."""

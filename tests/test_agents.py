@@ -735,10 +735,11 @@ def test_a_noise_schedule_caps_ppo_action_noise_down_to_its_final_std():
 
 
 @pytest.mark.parametrize("vec", ["native", "subproc"])
-def test_an_env_schedule_sets_the_tilt_rate_of_every_training_env_by_step(vec):
+def test_an_env_schedule_sets_the_tilt_rate_and_time_cost_of_every_training_env_by_step(vec):
     """env_schedule {max_tilt_rate: [[step, value], ...]}: each value from its step on, the
     env's own before the first; set on every env of the native vector env and of
-    SubprocVecEnv's workers before each rollout; bad schedules refused by name."""
+    SubprocVecEnv's workers before each rollout; bad schedules refused by name. The same
+    for time_weight, which the step's reward then charges."""
     from stable_baselines3 import PPO
 
     from pour_gym.agents.training.schedule import StepSchedule, schedule_callback
