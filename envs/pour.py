@@ -25,6 +25,7 @@ from pour_gym.envs.rules import (
     episode_amounts,
     episode_end,
     lip_goal,
+    needs_onset,
     next_tilt,
     pour_counts,
     shaping_potentials,
@@ -444,7 +445,7 @@ class PourEnv(PourGymEnv):
         )  # fmt: skip
         self.tolerance = tolerance(self.target_amount)
         self.world.fill(self.source, particles=self.fill)
-        onset = self.tilt_control == "onset" or self.stand_below is not None
+        onset = needs_onset(self.tilt_control, self.stand_below)
         self._held = self._held_by_tilt(source) if onset else None
         # The camera looks across the way from the source to the target.
         mid = 0.5 * (self.lip + self.target_pos)

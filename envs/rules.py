@@ -339,6 +339,14 @@ def untilt_rate(max_tilt_rate: float, max_untilt_rate: float | None) -> float:
     return max_tilt_rate if max_untilt_rate is None else max_untilt_rate
 
 
+def needs_onset(control: str, stand_below: float | None) -> bool:
+    """Whether the tilt action reads the source's onset (what it holds by tilt).
+
+    The ``"onset"`` form names tilts from it, and ``stand_below`` compares goals with it.
+    """
+    return control == "onset" or stand_below is not None
+
+
 def next_tilt(
     control: str, action: float, tilt: float, most: float, max_tilt: float,
     held: np.ndarray | None = None, fill: float = 0.0, back: float | None = None,
@@ -367,15 +375,15 @@ def next_tilt(
     Raises:
         InputError: ``stand_below`` or the onset form without ``held``.
     """
-    if held is None and (stand_below is not None or control == "onset"):
+    onset_needed = needs_onset(control, stand_below)
+    if held is None and onset_needed:
         raise InputError("the onset form and stand_below need held (what the source holds)")
     back = most if back is None else back
     if control == "rate":
         tilt = tilt + action * (most if action >= 0.0 else back)
     else:
         # The onset (an interpolation over the tilts) only where the action needs it.
-        needs = control == "onset" or stand_below is not None
-        onset = onset_tilt(held, fill) if needs else None
+        onset = onset_tilt(held, fill) if onset_needed else None
         if control == "angle":
             goal = tilt_goal(action, max_tilt)
         else:
