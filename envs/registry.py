@@ -26,6 +26,7 @@ POUR_V1 = "PourGym/Pour-v1"
 POUR_V2 = "PourGym/Pour-v2"
 POUR_V3 = "PourGym/Pour-v3"
 POUR_V4 = "PourGym/Pour-v4"
+POUR_V5 = "PourGym/Pour-v5"
 PANDA_POUR_V0 = "PourGym/PandaPour-v0"
 PARTICLE_DROP_V0 = "PourGym/ParticleDrop-v0"
 TILT_POUR_V0 = "PourGym/TiltPour-v0"
@@ -47,6 +48,14 @@ POUR_V3_DEFAULTS = {**POUR_V2_DEFAULTS, "max_untilt_rate": 60.0}
 # Pour-v4: Pour-v3 standing the source up once it has poured, for a tilt named below half
 # its onset (the class's Version History says why).
 POUR_V4_DEFAULTS = {**POUR_V3_DEFAULTS, "stand_below": 0.5}
+# Pour-v5: Pour-v4 with the tilt action naming a stream that the env's regulator holds
+# (the class's Version History says why).
+POUR_V5_DEFAULTS = {
+    **POUR_V4_DEFAULTS,
+    "tilt_control": "flow",
+    "stand_below": None,
+    "observe_flow": True,
+}
 
 
 @dataclass(frozen=True)
@@ -91,6 +100,9 @@ ENVS: tuple[EnvEntry, ...] = (
     ),
     EnvEntry(
         POUR_V4, "pour_gym.envs.pour:PourEnv", 250, kwargs=POUR_V4_DEFAULTS, quick=_QUICK_POUR
+    ),
+    EnvEntry(
+        POUR_V5, "pour_gym.envs.pour:PourEnv", 250, kwargs=POUR_V5_DEFAULTS, quick=_QUICK_POUR
     ),
     EnvEntry(PARTICLE_DROP_V0, "pour_gym.envs.particle_drop:ParticleDropEnv", 1),
     EnvEntry(TILT_POUR_V0, "pour_gym.envs.tilt_pour:TiltPourEnv", 1),

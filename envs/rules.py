@@ -31,13 +31,24 @@ AIM_OFFSET = 0.5
 # The source counts as upright below this tilt (deg).
 UPRIGHT_DEG = 3.0
 # The forms of the tilt action (the fourth) and of the lip action (the first three).
-TILT_CONTROLS = ("rate", "angle", "onset")
+TILT_CONTROLS = ("rate", "angle", "onset", "flow")
 LIP_CONTROLS = ("velocity", "target")
 # tilt_control="angle": the action's tilt range reaches this far below upright (deg), so a
 # band of actions, not one value, sets the source upright.
 UPRIGHT_BAND = 20.0
 # tilt_control="onset": how far beyond the source's onset tilt action 1 names (deg).
 ONSET_REACH = 30.0
+# tilt_control="flow": actions from FLOW_STOP to 1 ask for a flow from 0 to FLOW_REACH
+# target amounts per second (action 0: a third of it, about the stream the scripted expert
+# pours, so that exploring actions pour), actions at or below FLOW_STOP stand the source
+# up; the regulator that holds the flow is the scripted expert's, in deg/s: at most
+# FLOW_TILT_RATE on while the flow is short, at most FLOW_BACK_RATE back while it is
+# over, the tilt's change FLOW_GAIN x that rate x the relative error.
+FLOW_STOP = -0.5
+FLOW_REACH = 1.5
+FLOW_TILT_RATE = 3.6
+FLOW_BACK_RATE = 18.0
+FLOW_GAIN = 2.0
 
 # lip_control="target": the lip's goal reaches this many target rim radii from the target's
 # rim centre along x and y, and rises this high above the lowest allowed lip height (m).
@@ -299,10 +310,11 @@ def check_motion(
             raise InputError(
                 f"stand_below is a fraction of the onset tilt in (0, 1], not {stand_below}"
             )
-        if tilt_control == "rate":
+        if tilt_control in ("rate", "flow"):
             raise InputError(
                 "stand_below applies to the tilts an action names: give tilt_control="
-                "'angle' or 'onset' with it (a 'rate' action names no tilt)"
+                f"'angle' or 'onset' with it (a {tilt_control!r} action names no tilt; "
+                "a 'flow' action of 0 or below stands the source up)"
             )
 
 
@@ -344,20 +356,38 @@ def needs_onset(control: str, stand_below: float | None) -> bool:
 
     The ``"onset"`` form names tilts from it, and ``stand_below`` compares goals with it.
     """
-    return control == "onset" or stand_below is not None
+    return control in ("onset", "flow") or stand_below is not None
+
+
+def flow_step(wanted: float, flow: float, on: float, back: float, gain: float = FLOW_GAIN) -> float:
+    """The regulator of a stream by the tilt: the change (in ``on``'s unit) for one step.
+
+    Tilt on while the flow is short of the wanted one, back while it is over, by ``gain``
+    x ``on`` x the relative error, within [-``back``, ``on``]. The scripted expert pours by
+    it, and the ``tilt_control="flow"`` action is held by it.
+
+    Args:
+        wanted: the flow wanted, > 0 (any unit; ``flow`` in the same).
+        flow: the flow of the last step.
+        on: the largest change on (towards pouring), >= 0.
+        back: the largest change back, >= 0.
+        gain: the change per relative error, in units of ``on``.
+    """
+    return float(np.clip(gain * on * (wanted - flow) / wanted, -back, on))
 
 
 def next_tilt(
     control: str, action: float, tilt: float, most: float, max_tilt: float,
     held: np.ndarray | None = None, fill: float = 0.0, back: float | None = None,
-    stand_below: float | None = None,
+    stand_below: float | None = None, flow: float = 0.0, dt: float = 0.1,
 ) -> float:  # fmt: skip
     """Where a tilt action takes the source's tilt (deg) in one step.
 
     Args:
         control: the env's ``tilt_control``: ``"rate"`` (the action times ``most``),
-            ``"angle"`` (towards :func:`tilt_goal`) or ``"onset"`` (towards
-            :func:`onset_goal`, the onset from ``held`` and ``fill``).
+            ``"angle"`` (towards :func:`tilt_goal`), ``"onset"`` (towards
+            :func:`onset_goal`, the onset from ``held`` and ``fill``) or ``"flow"``
+            (:func:`flow_tilt`).
         action: the tilt action, in [-1, 1].
         tilt: the tilt now, deg.
         most: the largest change in one step, deg (towards ``max_tilt``).
@@ -368,19 +398,25 @@ def next_tilt(
         stand_below: ``"angle"`` and ``"onset"``: a goal below this fraction of the onset
             (from ``held`` and ``fill``) is upright (None: every goal as named).
             ``PourEnv`` passes it once the episode's pour has begun, None before.
+        flow: ``"flow"``: the last step's flow out of the source, target amounts.
+        dt: ``"flow"``: the step, s.
 
     Returns:
         The tilt, within [0, ``max_tilt``].
 
     Raises:
-        InputError: ``stand_below`` or the onset form without ``held``.
+        InputError: ``stand_below``, the onset or the flow form without ``held``.
     """
     onset_needed = needs_onset(control, stand_below)
     if held is None and onset_needed:
-        raise InputError("the onset form and stand_below need held (what the source holds)")
+        raise InputError(
+            "the onset and flow forms and stand_below need held (what the source holds)"
+        )
     back = most if back is None else back
     if control == "rate":
         tilt = tilt + action * (most if action >= 0.0 else back)
+    elif control == "flow":
+        tilt = flow_tilt(action, tilt, onset_tilt(held, fill), flow, most, back, dt)
     else:
         # The onset (an interpolation over the tilts) only where the action needs it.
         onset = onset_tilt(held, fill) if onset_needed else None
@@ -394,6 +430,52 @@ def next_tilt(
             goal = 0.0
         tilt = tilt + np.clip(goal - tilt, -back, most)
     return float(np.clip(tilt, 0.0, max_tilt))
+
+
+def flow_tilt(
+    action: float, tilt: float, onset: float, flow: float, most: float, back: float, dt: float
+) -> float:
+    """Where a ``tilt_control="flow"`` action takes the tilt (deg) in one step, unclipped.
+
+    An action at or below ``FLOW_STOP`` wants no flow: the source tilts back to upright at
+    ``back``. Above it, it wants :func:`flow_wanted` target amounts: with nothing flowing
+    below the onset the source tilts to it at up to ``most`` (quickly to where a stream
+    begins, as a person does), and then :func:`flow_step` regulates (at most
+    ``FLOW_TILT_RATE`` on, ``FLOW_BACK_RATE`` back), so that the stream the action names
+    is the stream there is, from any source at any fill.
+
+    Args:
+        action: the tilt action, in [-1, 1].
+        tilt: the tilt now, deg.
+        onset: the source's onset now (:func:`onset_tilt`), deg.
+        flow: the last step's flow out of the source, target amounts.
+        most: the largest change on in one step, deg.
+        back: the largest change back in one step, deg.
+        dt: the step, s.
+    """
+    wanted = flow_wanted(action, dt)
+    if wanted <= 0.0:
+        return tilt - min(back, tilt)
+    on = FLOW_TILT_RATE * dt
+    if flow <= 0.0 and tilt < onset:
+        return tilt + min(most, max(onset - tilt, on))
+    return tilt + flow_step(wanted, flow, on, min(FLOW_BACK_RATE * dt, back))
+
+
+def flow_wanted(action: float, dt: float) -> float:
+    """The flow a ``tilt_control="flow"`` action asks for, target amounts per step of ``dt`` s.
+
+    0 at or below ``FLOW_STOP``, ``FLOW_REACH`` x ``dt`` at 1, linear between.
+    """
+    return max(action - FLOW_STOP, 0.0) / (1.0 - FLOW_STOP) * FLOW_REACH * dt
+
+
+def flow_action(wanted: float, dt: float) -> float:
+    """The ``tilt_control="flow"`` action asking for a flow (target amounts per step), <= 1.
+
+    :func:`flow_wanted`'s inverse; a flow beyond the action's reach asks for the most.
+    """
+    return min(FLOW_STOP + (1.0 - FLOW_STOP) * wanted / (FLOW_REACH * dt), 1.0)
 
 
 def onset_goal(action: float, onset: float, max_tilt: float) -> float:

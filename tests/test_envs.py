@@ -26,11 +26,20 @@ from pour_gym.envs import (
     POUR_V2,
     POUR_V3,
     POUR_V4,
+    POUR_V5,
     entry,
     task_of,
 )
 from pour_gym.envs.pour import FEATURE_NAMES
-from pour_gym.envs.rules import lip_action, lip_goal, onset_tilt, tilt_action, tilt_goal
+from pour_gym.envs.rules import (
+    FLOW_STOP,
+    flow_wanted,
+    lip_action,
+    lip_goal,
+    onset_tilt,
+    tilt_action,
+    tilt_goal,
+)
 from pour_gym.features import fluid_features, relative_distance_height
 from pour_gym.objects import cylinder_cup
 
@@ -40,7 +49,7 @@ def test_every_registered_id_is_in_the_registry_list_the_generic_tests_use():
     registered under PourGym/ anywhere else would escape them, so none may be."""
     registered = {env_id for env_id in gym.registry if env_id.startswith("PourGym/")}
     assert registered == set(ENV_IDS) == {e.id for e in ENVS}
-    assert len(ENV_IDS) == len(set(ENV_IDS)) == 8
+    assert len(ENV_IDS) == len(set(ENV_IDS)) == 9
     for e in ENVS:
         spec = gym.spec(e.id)
         assert spec.entry_point == e.entry_point
@@ -52,10 +61,10 @@ def test_every_registered_id_is_in_the_registry_list_the_generic_tests_use():
 
 
 def test_each_env_names_its_task_and_the_task_scores_an_episode():
-    assert [task_of(e) for e in ENV_IDS] == [POUR, POUR, POUR, POUR, POUR,
+    assert [task_of(e) for e in ENV_IDS] == [POUR, POUR, POUR, POUR, POUR, POUR,
                                             task_of("PourGym/ParticleDrop-v0"),
                                             task_of("PourGym/TiltPour-v0"), POUR]  # fmt: skip
-    assert [task_of(e).pours for e in ENV_IDS] == [True, True, True, True, True, False, False, True]
+    assert [task_of(e).pours for e in ENV_IDS] == [True] * 6 + [False, False, True]
     info = {"is_success": True, "poured": 95, "target_amount": 100, "spilled": 2,
             "fluid_corrections": 7}  # fmt: skip
     assert POUR.metrics(info, 1.5) == {
@@ -179,6 +188,58 @@ def test_pour_v4_is_pour_v3_standing_up_below_half_the_onset(make_env):
     assert tilts[1][-1] < 19.0 and tilts[0][-1] == pytest.approx(20.0)  # v4 went on past 20
     with pytest.raises(ValueError, match="stand_below applies to the tilts an action names"):
         make_env(POUR_V0, objects="red_cup", stand_below=0.5)
+
+
+def _stream(make_env, action: float, steps: int = 90) -> tuple[np.ndarray, int]:
+    """Pour-v5 on the red cup (300 particles; seed 3: T 65, the lip started over the
+    target), the flow action held: particles out of the source per step, and T."""
+    env = make_env(POUR_V5, objects="red_cup")
+    env.reset(seed=3, options={"near_target": True})
+    fill, out, flows = env.unwrapped.fill, 0, []
+    for _ in range(steps):
+        info = env.step(np.array([0, 0, 0, action], dtype=np.float32))[-1]
+        now = fill - info["in_source"]
+        flows.append(now - out)
+        out = now
+    return np.array(flows), env.unwrapped.target_amount
+
+
+def test_pour_v5_pours_the_stream_it_is_asked_for_and_stands_up_on_a_stop(make_env):
+    """Pour-v5 is Pour-v4 with the flow form: over the 3 s after the stream starts, it runs
+    at 0.45-1.1 x the flow named (the regulator tilts on at 3.6 deg/s at most, so it lags
+    a rising onset), a bigger one faster; a stop (at or below FLOW_STOP) stands the
+    source up at the 60 deg/s back, ending the episode in success when the amount was
+    right."""
+    assert gym.spec(POUR_V5).kwargs == {
+        **gym.spec(POUR_V4).kwargs, "tilt_control": "flow", "stand_below": None,
+        "observe_flow": True,
+    }  # fmt: skip
+    means = []
+    for action in (-0.25, 0.0, 1.0):  # 0.25, 0.5 and 1.5 target amounts a second
+        flows, amount = _stream(make_env, action)
+        start = int(np.flatnonzero(flows)[0])  # to the onset at 20 deg/s, then slowly
+        named = flow_wanted(action, 0.1) * amount
+        means.append(flows[start : start + 30].mean())
+        assert 0.45 * named < means[-1] < 1.1 * named, (action, means[-1], named)
+    assert means[0] < means[1] < means[2]
+    # The scripted expert names its stream (its regulator is then the env's) and stops.
+    expert = ScriptedPourPolicy(**action_settings(POUR_V5))
+    env = make_env(POUR_V5, objects="red_cup")
+    named, tilts = [], []
+
+    def record(step) -> None:
+        named.append(float(step.action[3]))
+        tilts.append(env.unwrapped.tilt)
+
+    result = rollout(env, expert, seed=3, on_step=record)
+    assert result.info["is_success"] and result.info["spilled"] == 0, result.info
+    poured = [k for k, a in enumerate(named) if a > FLOW_STOP]
+    assert poured and max(named) <= 1.0
+    stop = poured[-1] + 1  # the first stop after the stream: back at 6 deg a step
+    back = np.diff([tilts[stop - 1], *tilts[stop : stop + 3]])
+    np.testing.assert_allclose(back, -6.0, atol=1e-6)
+    with pytest.raises(ValueError, match="stand_below applies to the tilts an action names"):
+        make_env(POUR_V5, objects="red_cup", stand_below=0.5)
 
 
 @pytest.mark.parametrize("env_id", ENV_IDS)

@@ -5,6 +5,8 @@ import pytest
 
 from pour_gym.envs.rules import (
     FILL_MARGIN,
+    FLOW_REACH,
+    FLOW_STOP,
     ONSET_REACH,
     POUR_OUTCOMES,
     RESTING_SPEED,
@@ -13,6 +15,9 @@ from pour_gym.envs.rules import (
     check_motion,
     episode_amounts,
     episode_end,
+    flow_action,
+    flow_step,
+    flow_wanted,
     next_tilt,
     onset_goal,
     onset_tilt,
@@ -99,6 +104,38 @@ def test_an_onset_action_names_upright_the_onset_and_beyond():
     assert next_tilt("onset", -1.0, 1.0, 2.0, 135.0, held, 500.0) == 0.0
 
 
+def test_a_flow_action_names_a_stream_and_below_its_stop_none():
+    """From FLOW_STOP to 1: 0 to FLOW_REACH target amounts a second (0.1 s steps)."""
+    assert flow_wanted(1.0, 0.1) == pytest.approx(FLOW_REACH * 0.1)
+    assert flow_wanted(0.0, 0.1) == pytest.approx(FLOW_REACH * 0.1 / 3.0)  # -0.5 to 1
+    assert flow_wanted(FLOW_STOP, 0.1) == 0.0 and flow_wanted(-1.0, 0.1) == 0.0
+    for a in (-0.4, 0.0, 0.7, 1.0):
+        assert flow_action(flow_wanted(a, 0.1), 0.1) == pytest.approx(a)
+    assert flow_action(10.0, 0.1) == 1.0  # beyond the reach: the most
+
+
+def test_the_flow_regulator_tilts_on_while_short_and_back_while_over():
+    """The scripted expert's law: 2 x the rate on x the relative error, within its rates."""
+    assert flow_step(0.05, 0.0, 0.36, 1.8) == 0.36  # nothing flows: on at its most
+    assert flow_step(0.05, 0.04, 0.36, 1.8) == pytest.approx(2 * 0.36 * 0.2)
+    assert flow_step(0.05, 0.05, 0.36, 1.8) == 0.0
+    assert flow_step(0.05, 0.5, 0.36, 1.8) == -1.8  # ten times over: back at its most
+    held = np.linspace(1000.0, 0.0, 136)  # 500 particles reach the mouth at 67.5 deg
+    args = (135.0, held, 500.0)
+    # Nothing flowing below the onset: on at the env's rate (2 deg a step), not past it.
+    assert next_tilt("flow", 0.0, 30.0, 2.0, *args, back=6.0) == 32.0
+    assert next_tilt("flow", 0.0, 67.0, 2.0, *args, back=6.0) == pytest.approx(67.5)
+    # At the onset with nothing flowing yet: on at the regulator's 3.6 deg/s.
+    assert next_tilt("flow", 0.0, 70.0, 2.0, *args, back=6.0) == pytest.approx(70.36)
+    # Flowing at twice the 0.05 T a step asked for: back by 2 x 0.36, within 1.8.
+    assert next_tilt("flow", 0.0, 70.0, 2.0, *args, back=6.0, flow=0.1) == pytest.approx(69.28)
+    # The stop: upright at the rate back, whatever flows.
+    assert next_tilt("flow", FLOW_STOP, 70.0, 2.0, *args, back=6.0, flow=0.1) == 64.0
+    assert next_tilt("flow", -1.0, 4.0, 2.0, *args, back=6.0) == 0.0
+    with pytest.raises(InputError, match="need held"):
+        next_tilt("flow", 0.0, 30.0, 2.0, 135.0)
+
+
 def test_the_rate_and_angle_actions_move_the_tilt_as_they_did():
     for a, tilt in ((0.3, 10.0), (-1.0, 1.0), (1.0, 134.0)):
         assert next_tilt("rate", a, tilt, 6.0, 135.0) == float(np.clip(tilt + a * 6.0, 0, 135))
@@ -140,8 +177,9 @@ def test_a_tilt_named_well_below_the_onset_stands_the_source_up():
     for bad, match in ((0.0, r"in \(0, 1\]"), (1.5, r"in \(0, 1\]")):
         with pytest.raises(InputError, match=match):
             check_motion(0.15, 60.0, 135.0, "angle", "velocity", stand_below=bad)
-    with pytest.raises(InputError, match="tilt_control='angle' or 'onset'"):
-        check_motion(0.15, 60.0, 135.0, "rate", "velocity", stand_below=0.5)
+    for control in ("rate", "flow"):
+        with pytest.raises(InputError, match="tilt_control='angle' or 'onset'"):
+            check_motion(0.15, 60.0, 135.0, control, "velocity", stand_below=0.5)
     with pytest.raises(InputError, match="need held"):
         next_tilt("angle", named_30, 32.0, 2.0, 135.0, back=6.0, stand_below=0.5)
 

@@ -18,13 +18,21 @@ from dataclasses import dataclass
 import numpy as np
 
 from pour_gym.envs.pour import FEATURE_NAMES
-from pour_gym.envs.rules import LIP_CONTROLS, lip_action, tilt_action, untilt_rate
+from pour_gym.envs.rules import (
+    LIP_CONTROLS,
+    flow_action,
+    flow_step,
+    lip_action,
+    tilt_action,
+    untilt_rate,
+)
 from pour_gym.errors import InputError
 
 _I = {name: k for k, name in enumerate(FEATURE_NAMES)}
 # The env's tilt forms the policy acts in: tilt_control="onset" names tilts from the
-# source's onset, which the features do not give it.
-TILT_FORMS = ("rate", "angle")
+# source's onset, which the features do not give it. With "flow" it names the stream it
+# wants and the env's regulator (the one it pours by in the other forms) holds it.
+TILT_FORMS = ("rate", "angle", "flow")
 # The policy's settings of the env's action form: its field -> the env's argument.
 ACTION_SETTINGS = {
     "tilt_control": "tilt_control",
@@ -84,11 +92,12 @@ class ScriptedPourPolicy:
             gentle start, so that a full source does not slosh over; 1 or more: none).
             The ramp lives in the policy's memory, not in the observation: a learner
             imitating it cannot tell the first step from the tenth.
-        tilt_control: the env's tilt action, ``"rate"`` (Pour-v0) or ``"angle"``
-            (Pour-v1): the policy decides a rate and, for ``"angle"``, gives the tilt one
-            step at that rate reaches (from the observed tilt), which the env moves to
-            at the same rate. :func:`action_settings` reads it and the next four from an
-            env id.
+        tilt_control: the env's tilt action, ``"rate"`` (Pour-v0), ``"angle"``
+            (Pour-v1) or ``"flow"`` (Pour-v5): the policy decides a rate and, for
+            ``"angle"``, gives the tilt one step at that rate reaches (from the observed
+            tilt), which the env moves to at the same rate; for ``"flow"`` it gives the
+            flow it wants (its regulator is then the env's), and -1 to stand up.
+            :func:`action_settings` reads it and the next four from an env id.
         max_tilt_rate: the env's ``max_tilt_rate``, deg/s (``"angle"`` only).
         max_untilt_rate: the env's ``max_untilt_rate``, deg/s (None: ``max_tilt_rate``):
             a negative action is a rate back at it.
@@ -132,7 +141,7 @@ class ScriptedPourPolicy:
     def __post_init__(self) -> None:
         if self.tilt_control not in TILT_FORMS:
             raise InputError(
-                f"the scripted policy acts with tilt_control {' or '.join(TILT_FORMS)}, not "
+                f"the scripted policy acts with tilt_control {', '.join(TILT_FORMS)}, not "
                 f"{self.tilt_control!r} (it cannot name a tilt from the source's onset)"
             )
         if self.lip_control not in LIP_CONTROLS:
@@ -173,11 +182,16 @@ class ScriptedPourPolicy:
         self.phase = "move"
         self._last_out = 0.0
         self._speed = 0.0
+        self._wanted: float | None = None
 
     def __call__(self, obs: np.ndarray) -> np.ndarray:
         """The action for one features observation."""
         action = self._rate_action(np.asarray(obs, dtype=np.float64))
-        if self.tilt_control == "angle":
+        if self.tilt_control == "flow":
+            # The flow it wants, in the action's unit; none (upright) to move and to stop.
+            wanted = self._wanted if self.phase == "tilt" else None
+            action[3] = -1.0 if wanted is None else flow_action(wanted, self.dt)
+        elif self.tilt_control == "angle":
             rate = self.max_tilt_rate if action[3] >= 0.0 else self.untilt_rate
             goal = 90.0 * obs[_I["tilt"]] + action[3] * rate * self.dt
             action[3] = np.clip(tilt_action(goal, self.max_tilt), -1.0, 1.0)
@@ -205,6 +219,7 @@ class ScriptedPourPolicy:
         # the lip in and out of the source's cavity counts once (its +1/-1 as a flow
         # would tilt the source back at every other step and stall the pour).
         out = max(self._last_out, o[_I["poured"]] + o[_I["in_flight"]] + o[_I["spilled"]])
+        self._wanted = None
         if self.phase == "tilt":
             flow = out - self._last_out
             self._last_out = out
@@ -214,13 +229,17 @@ class ScriptedPourPolicy:
                 # Quickly to where the fluid reaches the lip, then slowly until it pours.
                 action[3] = 1.0 if o[_I["f4_source"]] <= 0.0 else slow
             else:
-                trickle = self.min_particles / self.amount if self.amount else self.min_flow
-                wanted = max(trickle, self.share * (1.0 - out))
-                step = self.gain * slow * (wanted - flow) / wanted
-                action[3] = np.clip(step, -back, slow)
+                action[3] = flow_step(self._want(out), flow, slow, back, self.gain)
+            if self.phase == "tilt":
+                self._wanted = self._want(out)
         if self.phase == "back":
             action[3] = -1.0
         return action
+
+    def _want(self, out: float) -> float:
+        """The flow wanted when ``out`` target amounts have left: a share of what remains."""
+        trickle = self.min_particles / self.amount if self.amount else self.min_flow
+        return max(trickle, self.share * (1.0 - out))
 
 
 def action_settings(env_id: str, env_kwargs: dict | None = None) -> dict:

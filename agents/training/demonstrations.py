@@ -35,10 +35,14 @@ from stable_baselines3.common.type_aliases import ReplayBufferSamples
 from tqdm import tqdm
 
 from pour_gym.agents.policies.rollout import Step, rollout
-from pour_gym.agents.policies.scripted import TILT_FORMS, ScriptedPourPolicy
+from pour_gym.agents.policies.scripted import ScriptedPourPolicy
 from pour_gym.envs import make, task_of
 from pour_gym.envs.rules import tilt_action
 from pour_gym.errors import InputError
+
+# The env forms a demonstration records in: the expert's rate as it is, or as the tilt
+# it reaches ("flow" names a stream, which a recorded rate does not give).
+DEMO_FORMS = ("rate", "angle")
 
 
 @dataclass
@@ -117,9 +121,9 @@ class NoisyExpert:
             self.policy = ScriptedPourPolicy(**(expert or {}))
         except TypeError as exc:
             raise InputError(f"the demonstrating policy's arguments: {exc}") from None
-        if env.tilt_control not in TILT_FORMS:
+        if env.tilt_control not in DEMO_FORMS:
             raise InputError(
-                f"the scripted expert demonstrates with tilt_control {' or '.join(TILT_FORMS)}, "
+                f"the scripted expert demonstrates with tilt_control {' or '.join(DEMO_FORMS)}, "
                 f"not {env.tilt_control!r}"
             )
         self.env = env
