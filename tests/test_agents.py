@@ -542,6 +542,7 @@ def test_a_sampling_policy_is_the_same_for_the_same_seed_and_leaves_torch_alone(
         ("pour-v1-family-sde", "PourGym/Pour-v1"),
         ("pour-v2-family", "PourGym/Pour-v2"),
         ("pour-v4-family", "PourGym/Pour-v4"),
+        ("pour-v5-family", "PourGym/Pour-v5"),
     ],
 )
 def test_the_shipped_family_policies_act_by_their_mean_and_name_no_container_trained_on(
