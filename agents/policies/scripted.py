@@ -219,19 +219,18 @@ class ScriptedPourPolicy:
         # the lip in and out of the source's cavity counts once (its +1/-1 as a flow
         # would tilt the source back at every other step and stall the pour).
         out = max(self._last_out, o[_I["poured"]] + o[_I["in_flight"]] + o[_I["spilled"]])
-        self._wanted = None
         if self.phase == "tilt":
             flow = out - self._last_out
             self._last_out = out
+            # The flow form names it (__call__ reads it while the phase is "tilt").
+            self._wanted = self._want(out)
             if out + lead * flow >= 1.0:
                 self.phase = "back"
             elif out <= 0.0:
                 # Quickly to where the fluid reaches the lip, then slowly until it pours.
                 action[3] = 1.0 if o[_I["f4_source"]] <= 0.0 else slow
             else:
-                action[3] = flow_step(self._want(out), flow, slow, back, self.gain)
-            if self.phase == "tilt":
-                self._wanted = self._want(out)
+                action[3] = flow_step(self._wanted, flow, slow, back, self.gain)
         if self.phase == "back":
             action[3] = -1.0
         return action
