@@ -6,31 +6,36 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.utils import EzPickle
 
+from pour_gym.envs.actions import (
+    check_motion,
+    lip_goal,
+    needs_onset,
+    next_lip,
+    next_tilt,
+    untilt_rate,
+)
 from pour_gym.envs.base import PourGymEnv
 from pour_gym.envs.holders import HeldScene, make_holder
 from pour_gym.envs.observations import VECTOR_MODES, parse_obs_mode, vector_mode
 from pour_gym.envs.pour_observation import (
-    FEATURE_NAMES,
-    FLOW_NAME,
     OBS_LIMIT,
-    STATE_NAMES,
     feature_vector,
+    hidden_entries,
+    observation_names,
     out_flow,
     state_vector,
 )
 from pour_gym.envs.rules import (
+    REWARD_TERMS,
+    PourTally,
     amount_option,
     amount_terms,
-    check_motion,
+    check_amounts,
     episode_amounts,
     episode_end,
-    lip_goal,
-    needs_onset,
-    next_tilt,
     pour_counts,
     shaping_potentials,
     tolerance,
-    untilt_rate,
 )
 from pour_gym.envs.task import POUR
 from pour_gym.errors import InputError
@@ -40,9 +45,6 @@ from pour_gym.fluid.pbf import PBFConfig
 from pour_gym.sim import Camera, Container
 from pour_gym.sim.rotations import about_z
 from pour_gym.sim.sensors import Sensor, SensorConfig
-
-# T's range at 5 mm, particles of 0.125 ml (scaled to the same volumes at another spacing).
-AMOUNT_RANGE = (100, 300)
 
 
 class PourEnv(PourGymEnv):
@@ -59,39 +61,38 @@ class PourEnv(PourGymEnv):
 
     ## Action Space
     ``Box(-1, 1, (4,), float32)``: lip velocity along x, y, z (times ``max_speed`` m/s) and
-    tilt rate (times ``max_tilt_rate`` degrees/s, positive towards the target; a negative
-    rate times ``max_untilt_rate`` if it is given). The tilt stays within [0, ``max_tilt``]
-    degrees; the lip stays in a box over the table and high enough that the source clears
-    the target's rim. With ``tilt_control="angle"`` the fourth action is the tilt to go to
-    instead, from -``UPRIGHT_BAND`` (20 deg; upright below 0) at -1 to ``max_tilt`` at 1,
-    reached at no more than ``max_tilt_rate`` (back: ``max_untilt_rate``): exploring
-    actions reach every tilt (Gaussian noise on a rate seldom adds up to the 60-90 deg at
-    which a small fill pours). With ``"onset"``, the tilt to go to from the source's onset
-    (the tilt at which its fluid now reaches its mouth, quasi-static): upright at -1, the
-    onset at 0, ``ONSET_REACH`` (30 deg) beyond it at 1, the same stage of a pour from any
-    source at any fill. With ``"flow"``, the stream to pour: from ``FLOW_STOP`` (-0.5) to
-    1, 0 to ``FLOW_REACH`` (1.5) target amounts a second (0.5 at action 0, about the
-    scripted expert's stream), which the env's regulator holds by the tilt (the scripted
-    expert's: up to the source's onset at ``max_tilt_rate``, then on at most
-    ``FLOW_TILT_RATE``, 3.6 deg/s, back at most ``FLOW_BACK_RATE``, 18); at ``FLOW_STOP``
-    or below, upright at the rate back (:func:`pour_gym.envs.rules.flow_tilt`): a learner names how
-    much to pour and when to stop, not the tilt that pours it, which differs by source,
-    fill and liquid. With ``stand_below`` (angle and onset forms), once the episode's
-    pour has begun a tilt named below that fraction of the onset is upright: well short of
-    the onset nothing pours, and a pour is finished by standing the source up, not by
-    holding it there (before the pour, every tilt as named: a controller may tilt
-    towards the onset step by step). With ``lip_control="target"`` the first three
-    actions name where the lip goes instead, in the target's terms, reached at no more
-    than ``max_speed`` along each axis: along x and y the target's rim centre plus the
-    action times 2 target rim radii (``LIP_REACH``), up from the lowest allowed height
-    (-1) to 10 cm above it (1). The same motions again, in a form where one action means
-    the same place over every target (a velocity must be steered by a gain that depends on
-    the target's size).
+    tilt rate (times ``max_tilt_rate`` deg/s, positive towards the target; a negative rate
+    times ``max_untilt_rate`` if it is given). The tilt stays within [0, ``max_tilt``]
+    degrees; the lip in a box over the table, high enough that the source clears the
+    target's rim. The fourth action's other forms (``tilt_control``;
+    :mod:`pour_gym.envs.actions`): ``"angle"``, the tilt to go to, from -``UPRIGHT_BAND``
+    (20 deg; upright below 0) at -1 to ``max_tilt`` at 1, reached at no more than
+    ``max_tilt_rate`` (back: ``max_untilt_rate``), so that exploring actions reach every
+    tilt (Gaussian noise on a rate seldom adds up to the 60-90 deg at which a small fill
+    pours); ``"onset"``, the tilt to go to from the source's onset (the tilt at which its
+    fluid now reaches its mouth, quasi-static): upright at -1, the onset at 0,
+    ``ONSET_REACH`` (30 deg) beyond it at 1, the same stage of a pour from any source at
+    any fill; ``"flow"``, the stream to pour, from ``FLOW_STOP`` (-0.5) to 1 for 0 to
+    ``FLOW_REACH`` (1.5) target amounts a second (0.5 at action 0, about the scripted
+    expert's stream), held by the scripted expert's regulator (up to the source's onset
+    at ``max_tilt_rate``, then on at most ``FLOW_TILT_RATE``, 3.6 deg/s, back at most
+    ``FLOW_BACK_RATE``, 18), upright at ``FLOW_STOP`` or below: a learner names how much
+    to pour and when to stop, not the tilt that pours it, which differs by source, fill
+    and liquid. With ``stand_below`` (angle and onset forms), once the episode's pour has
+    begun a tilt named below that fraction of the onset is upright: a pour is finished by
+    standing the source up, not by holding it short of the onset (before the pour, every
+    tilt as named, so a controller may tilt towards the onset step by step). With
+    ``lip_control="target"`` the first three actions name where the lip goes instead, in
+    the target's terms, reached at no more than ``max_speed`` along each axis: along x and
+    y the target's rim centre plus the action times 2 target rim radii (``LIP_REACH``), up
+    from the lowest allowed height (-1) to 10 cm above it (1). One action then means the
+    same place over every target (a velocity must be steered by a gain that depends on the
+    target's size).
 
     ## Observation Space
     ``obs_mode="features"`` (default): ``Box(-10, 10, (16,), float32)``, see
-    ``FEATURE_NAMES``: the lip relative to the target's rim centre in units of the target's
-    rim radius and height, the tilt, the thesis's f3 and f4 of the source
+    ``FEATURE_NAMES``: the lip relative to the target's rim centre (in the target's rim
+    radius and height), the tilt, the thesis's f3 and f4 of the source
     (:func:`pour_gym.features.fluid_features`: fluid in the source, and the part of it
     above the source's lowest rim vertex, over the source's volume), the fluid poured, in
     flight and spilled over the target amount, the target amount over the target's
@@ -100,16 +101,14 @@ class PourEnv(PourGymEnv):
     ``obs_mode="state"``: ``Box(-10, 10, (19,), float32)``, see ``STATE_NAMES``: raw
     positions (m), tilt (rad), the target's yaw, bounding-box sizes (in 10 cm), particle
     counts over the initial fill; no warped features. ``observe_flow=True`` appends
-    ``out_flow`` to either: the particles that left the source over the last step, over the
-    target amount (the flow the scripted expert regulates; one observation alone does not
-    give it). ``hide`` names entries that read 0 in
-    either mode (the space keeps its shape): a learner kept blind to, say, the containers'
-    sizes, which are constants when it trains on one cup. The sensor modes
-    (``"depth"``, ``"rgb"``, ``"points"``; :mod:`pour_gym.sim.sensors`) are what a head
-    camera facing the two containers across the table sees (84 x 84 by default,
-    ``sensor_config``), the fluid drawn as one body of water; a tuple of modes, e.g.
-    ``("features", "depth")``, gives a ``Dict`` keyed by mode. With ``holder="panda"``
-    the sensors draw the arm too (its links as ``pybullet_data`` shapes them).
+    ``out_flow`` to either: the particles that left the source over the last step, over
+    the target amount (one observation alone does not give it). ``hide`` names entries
+    that read 0 (the space keeps its shape): a learner kept blind to, say, the containers'
+    sizes, constants when it trains on one cup. The sensor modes (``"depth"``, ``"rgb"``,
+    ``"points"``; :mod:`pour_gym.sim.sensors`) are what a head camera across the table
+    sees (84 x 84 by default, ``sensor_config``), the fluid drawn as one body of water and
+    with ``holder="panda"`` the arm; a tuple of modes, e.g. ``("features", "depth")``,
+    gives a ``Dict`` keyed by mode.
 
     What the observation knows of the containers' shapes (rims, heights, volumes, lip
     points, bounding boxes) comes from their labelled assets, or with
@@ -202,91 +201,59 @@ class PourEnv(PourGymEnv):
 
     ## Version History
     Every version is kept: v0 is the thesis's task, the setting of the shipped clone and
-    residual models; v1 and v2 are sets of defaults for learning from the reward, not
-    fixes of v0 (Gymnasium's "out of date" warning is silenced for Pour-v0 and v1).
+    residual models; v1 to v5 are sets of defaults for learning from the reward, not
+    fixes of v0 (Gymnasium's "out of date" warning is silenced for the older ids). What
+    each version's change did to the learners is measured in docs/learning-from-reward.md.
 
     * (this release, every version) ``liquid`` added (``"water"``, ``"milk"``, ``"oil"``,
       ``"syrup"``, ``"honey"``, a :class:`~pour_gym.fluid.liquid.Liquid` or a list drawn
-      from per episode, seeded;
-      ``info["liquid"]``; docs/liquids.md): water, the default, is the fluid as it was, bit
-      for bit; syrup and honey add a viscosity in its unit and walls that hold them.
-      ``spacing`` added (the fluid's particle spacing, 2.5-7 mm; None keeps 5 mm, bit
-      for bit; T's default range and the fill's margin keep their millilitres).
-      ``observe_flow`` added (off by default: the observation as it was).
-      ``tilt_control="onset"`` added (the tilt named from the source's onset).
-      ``stand_below`` added (None, the default: every tilt as named).
-      ``tilt_control="flow"`` added (the action names a stream, a regulator holds it).
+      from per episode, seeded; ``info["liquid"]``; docs/liquids.md): water, the default,
+      is the fluid as it was, bit for bit; syrup and honey add a viscosity in its unit and
+      walls that hold them. ``spacing`` added (2.5-7 mm; None keeps 5 mm, bit for bit;
+      T's default range and the fill's margin keep their millilitres). ``observe_flow``,
+      ``stand_below`` and the tilt forms ``"onset"`` and ``"flow"`` added (the defaults
+      change nothing).
     * v5: Pour-v4 with ``tilt_control="flow"`` (and no ``stand_below``: a flow action at
       or below -0.5 stands the source up) and ``observe_flow=True`` (the stream it named,
-      as it came). PPO over the family poured Pour-v1 to v4 in a flick, the amount out at
-      about 2 target amounts a second where the scripted expert pours at 0.57, and its
-      stop came late or early by more than the tolerance on shapes it had not seen (0.70
-      at best over ``procedural:test``). Here the tilt that pours a stream is the env's,
-      and the learner names the stream and the stop.
+      as it came). PPO over the family poured Pour-v1 to v4 in a flick (about 2 target
+      amounts a second where the scripted expert pours 0.57) and stopped late or early by
+      more than the tolerance on shapes it had not seen (0.70 at best over
+      ``procedural:test``). Here the tilt that pours a stream is the env's; the learner
+      names the stream and the stop.
     * v4: Pour-v3 with ``stand_below=0.5``: once the episode's pour has begun, a tilt
-      named below half the source's onset is upright. On Pour-v3 a learner's mean action
-      left a fifth of its episodes poured and held short of upright (its stand-up action
-      named 3.25 deg, at the edge of the 3 deg that counts as upright); the same policy
-      scores 0.48 here over ``procedural:test`` against 0.35 (unfinished 7.5 % from
-      20 %). The scripted expert's episodes are Pour-v3's (0.99 over the family, 0.99 on
-      the catalogue). PPO's lineage trained on here from its Pour-v3 policies for 250k
-      steps scored 0.485 and 0.63 over ``procedural:test`` on two seeds (0.35 and 0.545
-      on Pour-v3), still pouring in a flick (docs: learning from the reward, "standing
-      up").
-    * v3: Pour-v2 with ``max_untilt_rate=60`` (tilting on at 20 deg/s, back towards
-      upright at Pour-v1's 60 deg/s; 6 deg a step). The learners' failures over the
-      procedural family at 20 deg/s are mostly the amount (overshooting and
-      under-pouring, 30-45 % of the episodes): a stop begun at 20 deg/s lets the stream
-      run on for as long again as one at 60. A slow tilt on and a quick one back is how
-      a person pours. The scripted expert (its lead and back rate kept in seconds and
-      deg/s) scores 0.99 over ``procedural:test``, amount error 3.0 particles (Pour-v2:
-      0.93, 5.7), and 0.99, 2.9 on the 12 catalogue containers (0.97, 4.8). The
-      learners did not gain: PPO's lineage trained on here from its 500k checkpoints
-      scored 0.35 and 0.545 over ``procedural:test`` on two seeds (0.435 and 0.485 on
-      Pour-v2), still pouring in a flick (docs: learning from the reward, "a quick tilt
-      back").
-    * v2: Pour-v1 with ``max_tilt_rate=20`` (v1: 60 deg/s; 2 deg a step). A learner over
-      the procedural family pours in a flick at 60 deg/s (the target amount out in about
-      0.6 s, where the scripted expert pours for 4 s) and stops too late or too early;
-      held to 20 deg/s the same PPO run, trained on from its 600k-step checkpoint for
-      200k steps, scored 0.56 over ``procedural:test`` by its mean action against 0.41
-      trained on at 60 deg/s (docs: learning from the reward, "a slower tilt"; 0.66 at
-      1M). From scratch at 20 deg/s the same PPO found the pour and lost it again: train
-      at 60 deg/s first (the recipe key ``env_schedule``). The scripted expert, which
-      keeps its tilt rates in deg/s, scores 0.94 over the family (0.975 at 60 deg/s on
-      the same episodes) and 0.98 on the catalogue (1.00).
-    * v1: the same class, task and physics as v0 with the defaults under which a standard
-      learner learns the task from its reward (docs: learning from the reward):
-      ``tilt_control="angle"`` (a zero action holds 57.5 deg, so exploration reaches the
-      tilts at which a fill pours); potential-based shaping towards the pouring point
-      (``aim_weight=0.2``) and upright once the amount is out (``upright_weight=0.5``),
-      with no shaping towards a tilt (a tilt potential kept by a source held just below
-      its onset until the time limit made hovering there pay more than pouring);
-      ``overshoot_weight=1.0`` (progress and overshoot together then sum to minus the
-      change of |poured - T| / T: pouring too much costs what pouring too little does,
-      and pouring everything no longer costs more than never pouring);
-      ``success_weight=2.0``. Arguments ``hide``, ``perception``, ``scan_seed``,
-      ``sensor_config`` and ``lip_control``, and the sensor observation modes
-      (``"depth"``, ``"rgb"``, ``"points"``, tuples of modes), added (both versions; the
+      named below half the source's onset is upright (on Pour-v3 a learner's mean action
+      left a fifth of its episodes poured and held just short of upright). The scripted
+      expert's episodes are Pour-v3's.
+    * v3: Pour-v2 with ``max_untilt_rate=60`` (on at 20 deg/s, back at 60): a stop begun
+      at 20 deg/s lets the stream run on for as long again as one at 60; a slow tilt on
+      and a quick one back is how a person pours. The scripted expert scores 0.99 over
+      ``procedural:test`` (Pour-v2: 0.93).
+    * v2: Pour-v1 with ``max_tilt_rate=20`` (v1: 60 deg/s): at 60 deg/s a learner over the
+      family pours the amount out in about 0.6 s, where the scripted expert pours for 4 s,
+      and misses the stop. From scratch at 20 deg/s PPO found the pour and lost it again:
+      train at 60 deg/s first (the recipe key ``env_schedule``).
+    * v1: v0's class, task and physics with the defaults under which a standard learner
+      learns the task from its reward: ``tilt_control="angle"`` (a zero action holds
+      57.5 deg, so exploration reaches the tilts at which a fill pours); potential-based
+      shaping towards the pouring point (``aim_weight=0.2``) and upright once the amount
+      is out (``upright_weight=0.5``), none towards a tilt (a source held just below its
+      onset until the time limit paid more than pouring); ``overshoot_weight=1.0``
+      (pouring too much costs what pouring too little does); ``success_weight=2.0``.
+      Arguments ``hide``, ``perception``, ``scan_seed``, ``sensor_config`` and
+      ``lip_control``, and the sensor observation modes added (both versions; the
       defaults change nothing).
     * v0 (this release): the fluid takes substeps by the CFL bound and puts back particles
-      that tunnelled into a wall (``info["fluid_corrections"]``), so no action raises; an
-      episode ends after a pour only when ``pour_threshold`` particles stayed out for
-      ``pour_steps`` steps (one particle flickering across the rim ended episodes
-      before); the fill is sized to the task by default (T + 100, was 1000); f4 counts
-      the fluid above the source's lowest rim vertex (the thesis's lip point, through
-      :mod:`pour_gym.features`; it was the held lip's height); feature ``in_source``
-      added; reward weights and the ``time``, ``aim`` and ``upright`` shaping terms are
-      arguments (with ``control`` and ``tilt``); ``num_threads``, ``tilt_control`` and the reset
-      options ``near_target`` and ``fill_margin`` added; the fluid's one-thread kernel runs
-      without numba's reference counting (1.3x faster; the same physics, the particles
-      differ from before in their last bits); a push out of a wall no longer adds more
-      speed than the particle and the wall brought (particles found in the folds of a
-      scanned mug were flung out of it: the scripted policy spilled 5.7 per episode
-      from the YCB mug); ``holder`` added (``"free"``, this env; ``"panda"`` is
-      PandaPour-v0); the fluid kernel reads its walls' fields in single precision and
-      runs its passes in a new order (faster, the validated accuracy kept; the particles
-      differ from before in their last bits).
+      that tunnelled into a wall (``info["fluid_corrections"]``), so no action raises; a
+      pour must keep ``pour_threshold`` particles out for ``pour_steps`` steps (one
+      particle flickering across the rim ended episodes before); the fill is sized to the
+      task (T + 100, was 1000); f4 counts the fluid above the source's lowest rim vertex
+      (the thesis's lip point; it was the held lip's height); feature ``in_source``, the
+      reward weights, the shaping terms, ``num_threads``, ``tilt_control``, ``holder`` and
+      the reset options ``near_target`` and ``fill_margin`` added; a push out of a wall no
+      longer adds speed (particles in the folds of a scanned mug were flung out); the
+      kernel runs without numba's reference counting, reads its walls' fields in single
+      precision and runs its passes in a new order (faster, the validated accuracy kept;
+      the particles differ from before in their last bits).
     * v0 (first release): 1000 particles, six 1/60 s fluid steps per step.
     """
 
@@ -351,15 +318,7 @@ class PourEnv(PourGymEnv):
             render_mode,
             Camera(distance=0.55, pitch=-30.0),
             {
-                "progress": progress_weight,
-                "overshoot": overshoot_weight,
-                "spill": spill_weight,
-                "success": success_weight,
-                "time": time_weight,
-                "aim": aim_weight,
-                "upright": upright_weight,
-                "tilt": tilt_weight,
-                "control": control_weight,
+                **{term: args[f"{term}_weight"] for term in REWARD_TERMS},
                 **self.holder.reward_weights(),
             },
             perception=perception,
@@ -369,19 +328,12 @@ class PourEnv(PourGymEnv):
             spacing=spacing,
         )
         modes = parse_obs_mode(obs_mode)
-        if source_particles is not None and source_particles < 100:
-            raise InputError(f"source_particles must be at least 100, not {source_particles}")
         # Counts sized for 5 mm particles (the default amounts, the fill's margin) keep their
         # volume at another spacing: 100 particles at 5 mm are 292 at 3.5 mm.
         self.per_5mm = (PBFConfig.spacing / self.fluid_config.spacing) ** 3
-        lo, hi = amount_range or [round(n * self.per_5mm) for n in AMOUNT_RANGE]
-        if not 1 <= lo <= hi:
-            raise InputError(f"amount_range must be (low, high) with 1 <= low <= high: {lo, hi}")
-        if pour_threshold < 1 or pour_steps < 1:
-            raise InputError(
-                f"pour_threshold and pour_steps must be at least 1, not {pour_threshold}, "
-                f"{pour_steps}"
-            )
+        lo, hi = check_amounts(
+            source_particles, amount_range, self.per_5mm, pour_threshold, pour_steps
+        )
         check_motion(
             max_speed, max_tilt_rate, max_tilt, tilt_control, lip_control, max_untilt_rate,
             stand_below,
@@ -404,21 +356,8 @@ class PourEnv(PourGymEnv):
         self.dt = 0.1
         self.observe_flow = bool(observe_flow)
         vector = vector_mode(modes)
-        self.obs_names = ()
-        if vector:
-            names = FEATURE_NAMES if vector == "features" else STATE_NAMES
-            flow = (FLOW_NAME,) if observe_flow else ()
-            self.obs_names = names + flow + self.holder.obs_names
-        hide = (hide,) if isinstance(hide, str) else tuple(hide)
-        unknown = sorted(set(hide) - set(self.obs_names))
-        if unknown:
-            raise InputError(
-                f"hide names observation entries; {obs_mode!r} has no {unknown} (it has "
-                f"{', '.join(self.obs_names) or 'no vector entries'})"
-            )
-        self.hide = hide
-        # Indices, not names, on every step.
-        self._hidden = np.array([self.obs_names.index(h) for h in self.hide], dtype=np.int64)
+        self.obs_names = observation_names(vector, self.observe_flow, self.holder.obs_names)
+        self.hide, self._hidden = hidden_entries(hide, self.obs_names, obs_mode)
         self._setup_observations(obs_mode)
         self.action_space = self.holder.action_space()
 
@@ -467,13 +406,12 @@ class PourEnv(PourGymEnv):
         self.camera = Camera(
             target=(float(mid[0]), float(mid[1]), 0.1), distance=0.5, yaw=0.0, pitch=-20.0
         )
-        self._out_run = 0  # steps in a row with a pour's worth out of the source
-        self._poured_any = False
         self._corrections = 0
         self._substeps = 0
         self._counts = self._count_now()
         self._flow = 0.0
-        self._out_most, self._out_flow = self.fill - self._counts["in_source"], 0.0
+        out = self.fill - self._counts["in_source"]
+        self._tally = PourTally(self.pour_threshold, self.pour_steps, out)
         self._potentials = self._potential()
         self.camera = self.holder.camera(self.lip, self.target_pos) or self.camera
         return self._observation(), self._info()
@@ -489,16 +427,10 @@ class PourEnv(PourGymEnv):
         prev, c = self._counts, self._count_now()
         self._counts = c
         self._flow = out_flow(prev, c, self.target_amount)
-        out = self.fill - c["in_source"]
-        # The flow the "flow" tilt form regulates: of the running most out, so that a
-        # particle flickering across the rim counts once (as the scripted expert's).
-        self._out_flow = max(out - self._out_most, 0) / self.target_amount
-        self._out_most = max(out, self._out_most)
-        self._out_run = self._out_run + 1 if out >= self.pour_threshold else 0
-        self._poured_any = self._poured_any or self._out_run >= self.pour_steps
+        self._tally.update(self.fill - c["in_source"], self.target_amount)
         failure = self.holder.failure()
         terminated, success = episode_end(
-            c, self.tilt, self._poured_any, failure, self.target_amount, self.tolerance
+            c, self.tilt, self._tally.poured_any, failure, self.target_amount, self.tolerance
         )
         potentials = self._potential()
         terms = {
@@ -525,11 +457,7 @@ class PourEnv(PourGymEnv):
 
     @property
     def time_weight(self) -> float:
-        """The weight of the reward's ``time`` term, a cost for each step.
-
-        Settable, so that a training schedule (a recipe's ``env_schedule``) can charge it
-        from a step count on; each step reads it.
-        """
+        """The ``time`` term's weight, settable (a recipe's ``env_schedule`` sets it mid-run)."""
         return self.reward_weights["time"]
 
     @time_weight.setter
@@ -550,32 +478,23 @@ class PourEnv(PourGymEnv):
         most ``max_tilt_rate`` towards ``max_tilt`` and ``untilt_rate`` back towards upright
         (as a rate, or towards the angle the action names), within [0, ``max_tilt``].
         """
-        lo = np.array([-0.1, -0.3, self.z_min])
-        hi = np.array([0.45, 0.3, 0.5])
-        if self.lip_control == "velocity":
-            move = a[:3] * self.max_speed * self.dt  # in this order: Pour-v0's bits
-        else:
+        goal = None
+        if self.lip_control == "target":
             # In the target's terms as the policy perceives it (its features' geometry).
-            reach = self.max_speed * self.dt
             gt = self.seen(self._names["target"]).geometry
             centre = self.target.to_world(gt.rim_center)
-            move = np.clip(
-                lip_goal(a[:3], centre, gt.rim_radius, self.z_min) - self.lip, -reach, reach
-            )
-        lip = np.clip(self.lip + move, lo, hi)
+            goal = lip_goal(a[:3], centre, gt.rim_radius, self.z_min)
+        lip = next_lip(a[:3], self.lip, self.z_min, self.max_speed, self.dt, goal)
         tilt = next_tilt(
             self.tilt_control, a[3], self.tilt, self.max_tilt_rate * self.dt, self.max_tilt,
             self._held, self._counts["in_source"], self.untilt_rate * self.dt,
-            self.stand_below if self._poured_any else None, self._out_flow, self.dt,
+            self.stand_below if self._tally.poured_any else None, self._tally.flow, self.dt,
         )  # fmt: skip
         return lip, tilt
 
     # ------------------------------------------------------------------ helpers
     def _held_by_tilt(self, name: str) -> np.ndarray:
-        """What the source holds at rest at each whole degree of tilt, particles (kept).
-
-        From the source as the policy knows it (its features' geometry), held as it is.
-        """
+        """What the source as the policy knows it holds at rest at each whole degree, particles."""
         kind = f"held {self.holder.name} {self.max_tilt}"  # the envs of a vector env share
 
         def load() -> np.ndarray:
@@ -662,7 +581,7 @@ class PourEnv(PourGymEnv):
             **{k: c[k] for k in ("in_source", "poured", "in_flight", "spilled")},
             "poured_ml": c["poured"] * v_ml,
             "tilt_deg": self.tilt,
-            "poured_any": self._poured_any,
+            "poured_any": self._tally.poured_any,
             "fluid_corrections": self._corrections,
             "fluid_substeps": self._substeps,
             **(terms or {}),

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from pour_gym.errors import InputError
 from pour_gym.features import ContainerGeometry, fluid_features, relative_distance_height
 from pour_gym.sim import Container
 
@@ -56,6 +57,41 @@ STATE_NAMES = (
 FLOW_NAME = "out_flow"
 # Every observation entry is clipped to +-this.
 OBS_LIMIT = 10.0
+
+
+def observation_names(
+    vector: str | None, observe_flow: bool, held: tuple[str, ...]
+) -> tuple[str, ...]:
+    """The entries of a vector observation, by name (none without a vector mode).
+
+    Args:
+        vector: ``"features"``, ``"state"`` or None.
+        observe_flow: ``FLOW_NAME`` follows the mode's entries.
+        held: the holder's own entries, last.
+    """
+    if not vector:
+        return ()
+    names = FEATURE_NAMES if vector == "features" else STATE_NAMES
+    return names + ((FLOW_NAME,) if observe_flow else ()) + held
+
+
+def hidden_entries(
+    hide: str | tuple[str, ...] | list[str], names: tuple[str, ...], obs_mode: object
+) -> tuple[tuple[str, ...], np.ndarray]:
+    """The entries ``hide`` names (that read 0), checked, and their indices in ``names``.
+
+    Raises:
+        InputError: naming the entries ``obs_mode`` does not have, and the ones it has.
+    """
+    hide = (hide,) if isinstance(hide, str) else tuple(hide)
+    unknown = sorted(set(hide) - set(names))
+    if unknown:
+        raise InputError(
+            f"hide names observation entries; {obs_mode!r} has no {unknown} (it has "
+            f"{', '.join(names) or 'no vector entries'})"
+        )
+    # Indices, not names, on every step.
+    return hide, np.array([names.index(h) for h in hide], dtype=np.int64)
 
 
 def out_flow(prev: dict, counts: dict, target_amount: int) -> float:

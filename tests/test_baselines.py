@@ -10,7 +10,8 @@ import pytest
 from scipy.stats import trim_mean
 
 from pour_gym.agents.evaluation.aggregate import mean_interval
-from pour_gym.agents.evaluation.baselines import baselines_report, training_kind
+from pour_gym.agents.evaluation.baselines import baselines_report
+from pour_gym.agents.evaluation.summaries import training_kind
 from pour_gym.errors import InputError
 
 
@@ -254,7 +255,7 @@ def test_the_committed_report_is_what_the_committed_summaries_give(tmp_path):
 
 def test_what_a_row_is_scored_on_names_the_kind_of_container():
     """A user's mesh file is not a catalogue container: the column says which is which."""
-    from pour_gym.agents.evaluation.baselines import scored_on
+    from pour_gym.agents.evaluation.summaries import scored_on
 
     def rows(*names):
         return [{"object": n, "trained_on": n == "red_cup"} for n in names]

@@ -30,8 +30,7 @@ from pour_gym.envs import (
     entry,
     task_of,
 )
-from pour_gym.envs.pour import FEATURE_NAMES
-from pour_gym.envs.rules import (
+from pour_gym.envs.actions import (
     FLOW_STOP,
     flow_wanted,
     lip_action,
@@ -40,6 +39,7 @@ from pour_gym.envs.rules import (
     tilt_action,
     tilt_goal,
 )
+from pour_gym.envs.pour_observation import FEATURE_NAMES
 from pour_gym.features import fluid_features, relative_distance_height
 from pour_gym.objects import cylinder_cup
 

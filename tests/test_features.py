@@ -139,8 +139,8 @@ def test_a_cylinder_holds_what_tan_theta_says_when_tilted(tmp_path):
     """A straight cylinder of radius R and depth H holds pi R^2 (H - R tan(theta)) while the
     water covers its bottom: the onset of a fill h is tan(theta) = (H - h) / R."""
     from pour_gym.assets.containers import resolve_asset
+    from pour_gym.envs.actions import onset_tilt
     from pour_gym.envs.holders import SourceFrame
-    from pour_gym.envs.rules import onset_tilt
     from pour_gym.objects import cylinder_cup
     from pour_gym.sim.rotations import about_z
 

@@ -174,6 +174,21 @@ def test_no_import_cycle():
     assert cycles(graph()) == []
 
 
+# Modules a newcomer reads in one sitting: none longer than this, but the fluid's kernel
+# (one compiled function and its passes, kept together so numba inlines them).
+MAX_LINES = 600
+LONG_ON_PURPOSE = {"pour_gym.fluid.kernel"}
+
+
+def test_no_module_is_over_600_lines_but_the_fluid_kernel():
+    long = {
+        name: n
+        for name, path in module_files().items()
+        if (n := len(path.read_text().splitlines())) > MAX_LINES and name not in LONG_ON_PURPOSE
+    }
+    assert long == {}
+
+
 def test_the_checks_catch_what_they_look_for():
     edges = {"pour_gym.sim.world": {"pour_gym.envs.pour"}, "pour_gym.envs.pour": set()}
     assert violations(edges) == [

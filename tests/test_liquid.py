@@ -176,7 +176,7 @@ def test_water_drains_by_torricellis_law_and_honey_slower():
     discharge coefficient fitted on the first half of the fall, within 15 % (water: within
     3 % measured); honey drains slower (a smaller coefficient, viscous losses); a finer
     spacing, with more particles across the hole, drains nearer a sharp orifice's 0.6."""
-    from pour_gym.fluid.validation import efflux
+    from pour_gym.fluid.flows import efflux
 
     water = efflux(num_threads=1)
     assert water.drain_s == pytest.approx(water.torricelli_s, rel=0.15)
@@ -213,7 +213,7 @@ def test_a_dam_break_front_follows_martin_and_moyce():
     base is squeezed (90th percentile of the density over rest 1.081): the lead follows
     the squeeze, not the motion, so a damped hold that halves the motion leaves the
     squeeze and the lead (docs/liquids.md)."""
-    from pour_gym.fluid.validation import KOSHIZUKA_OKA, dam_break
+    from pour_gym.fluid.flows import KOSHIZUKA_OKA, dam_break
 
     run = dam_break(num_threads=1)
     assert 0.0 < run.settled_speed < 0.25
@@ -245,8 +245,8 @@ def test_in_half_the_envs_substep_the_dam_breaks_column_holds_and_its_front_foll
     from dataclasses import asdict
 
     from pour_gym.apps.bench.liquids import FINE_SUBSTEP, _front_ratios
+    from pour_gym.fluid.flows import dam_break
     from pour_gym.fluid.pbf import PBFConfig
-    from pour_gym.fluid.validation import dam_break
 
     run = dam_break(num_threads=1, config=PBFConfig(substep=FINE_SUBSTEP))
     assert run.substep == FINE_SUBSTEP == 1 / 480
@@ -260,7 +260,7 @@ def test_in_half_the_envs_substep_the_dam_breaks_column_holds_and_its_front_foll
 def test_a_floor_with_friction_holds_the_dam_breaks_front_back():
     """On the envs' table (its friction 20/s) the surge reaches the far wall later than on
     a floor that lets it slide, and never leads it by more than a spacing."""
-    from pour_gym.fluid.validation import DAM_WIDTH, dam_break
+    from pour_gym.fluid.flows import DAM_WIDTH, dam_break
 
     free, held = dam_break(num_threads=1), dam_break(num_threads=1, floor_friction=20.0)
     assert held.floor_friction == 20.0 and free.floor_friction is None
@@ -278,7 +278,7 @@ def test_a_floor_with_friction_holds_the_dam_breaks_front_back():
 @pytest.mark.parametrize("speed", [-0.5, float("nan")])
 def test_a_dam_break_refuses_a_gate_speed_that_is_no_speed(speed):
     from pour_gym.errors import InputError
-    from pour_gym.fluid.validation import dam_break, gate_speed_limit
+    from pour_gym.fluid.flows import dam_break, gate_speed_limit
 
     with pytest.raises(InputError, match="gate_speed must be a speed of 0 m/s or more"):
         dam_break(gate_speed=speed, fields=(None, None))

@@ -51,7 +51,7 @@ def test_pour_with_perceived_features_keeps_the_physics_and_changes_what_is_seen
     from pour_gym.agents.policies.rollout import rollout
     from pour_gym.agents.policies.scripted import ScriptedPourPolicy
     from pour_gym.envs import POUR
-    from pour_gym.envs.pour import FEATURE_NAMES
+    from pour_gym.envs.pour_observation import FEATURE_NAMES
 
     monkeypatch.setenv("POUR_GYM_CACHE", str(cache))
     small = {"objects": "very_small_cup", "source_particles": 300, "amount_range": (40, 80)}

@@ -1,31 +1,38 @@
-"""The pouring task's rules: one definition, read by the env, the task and the expert."""
+"""The pouring task's rules and its actions' encoding: one definition each, read by the env,
+the task and the expert."""
 
 import numpy as np
 import pytest
 
-from pour_gym.envs.rules import (
-    FILL_MARGIN,
+from pour_gym.envs.actions import (
     FLOW_REACH,
     FLOW_STOP,
     ONSET_REACH,
-    POUR_OUTCOMES,
-    RESTING_SPEED,
     UPRIGHT_BAND,
-    amount_terms,
     check_motion,
-    episode_amounts,
-    episode_end,
     flow_action,
     flow_step,
     flow_wanted,
+    next_lip,
     next_tilt,
     onset_goal,
     onset_tilt,
-    outcome,
-    pour_counts,
-    succeeded,
     tilt_action,
     tilt_goal,
+)
+from pour_gym.envs.rules import (
+    FILL_MARGIN,
+    POUR_OUTCOMES,
+    RESTING_SPEED,
+    PourTally,
+    amount_terms,
+    check_amounts,
+    episode_amounts,
+    episode_end,
+    outcome,
+    pour_counts,
+    running_rise,
+    succeeded,
     tolerance,
 )
 from pour_gym.errors import InputError
@@ -228,3 +235,42 @@ def test_pour_profile_times_the_stream_and_its_peak():
     assert flicker == {"pour_seconds": pytest.approx(0.1), "peak_flow": pytest.approx(0.1)}
     assert pour_profile(infos([0, 0]), dt=0.1) == {"pour_seconds": 0.0, "peak_flow": 0.0}
     assert POUR.profile(infos([0, 5]), dt=0.1)["pour_seconds"] == pytest.approx(0.1)
+
+
+def test_the_tally_counts_a_flickering_particle_once_and_a_pour_after_its_steps():
+    tally = PourTally(threshold=5, steps=3, most=0)
+    outs = [0, 4, 6, 5, 6, 7, 7, 20]  # a particle in and out across the rim at 6, 5, 6
+    flows, poured = [], []
+    for out in outs:
+        tally.update(out, 100)
+        flows.append(round(tally.flow * 100))
+        poured.append(tally.poured_any)
+    assert flows == [0, 4, 2, 0, 0, 1, 0, 13]  # the rise of the running most
+    assert sum(flows) == max(outs)
+    # 6, 5, 6 are three steps at or above 5 out: the pour has happened at the third.
+    assert poured == [False, False, False, False, True, True, True, True]
+    assert running_rise(3.0, 5.0) == (0.0, 5.0) and running_rise(7.5, 5.0) == (2.5, 7.5)
+
+
+def test_amounts_and_the_pour_rule_are_checked_with_a_message():
+    assert check_amounts(None, None, 1.0, 5, 3) == (100, 300)
+    # At 3.5 mm particles the default range keeps its millilitres: 2.915x the particles.
+    assert check_amounts(None, None, (5 / 3.5) ** 3, 5, 3) == (292, 875)
+    with pytest.raises(InputError, match="source_particles must be at least 100"):
+        check_amounts(50, None, 1.0, 5, 3)
+    with pytest.raises(InputError, match="amount_range"):
+        check_amounts(None, (300, 100), 1.0, 5, 3)
+    with pytest.raises(InputError, match="pour_steps"):
+        check_amounts(None, None, 1.0, 5, 0)
+
+
+def test_the_lip_moves_at_most_its_speed_and_stays_in_the_box():
+    lip = np.array([0.0, 0.0, 0.2])
+    # A velocity: 0.15 m/s for 0.1 s at action 1.
+    moved = next_lip(np.array([1.0, -0.5, 0.0]), lip, 0.1, 0.15, 0.1, None)
+    assert np.allclose(moved, [0.015, -0.0075, 0.2])
+    # Towards a goal 1 m away along x: one step's reach, and the lowest height holds.
+    moved = next_lip(np.zeros(3), lip, 0.25, 0.15, 0.1, np.array([1.0, 0.0, 0.2]))
+    assert np.allclose(moved, [0.015, 0.0, 0.25])
+    # The box over the table: x at most 0.45 m.
+    assert next_lip(np.ones(3), np.array([0.449, 0.0, 0.3]), 0.1, 0.15, 0.1, None)[0] == 0.45

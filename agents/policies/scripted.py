@@ -17,8 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pour_gym.envs.pour import FEATURE_NAMES
-from pour_gym.envs.rules import (
+from pour_gym.envs.actions import (
     LIP_CONTROLS,
     flow_action,
     flow_step,
@@ -26,6 +25,8 @@ from pour_gym.envs.rules import (
     tilt_action,
     untilt_rate,
 )
+from pour_gym.envs.pour_observation import FEATURE_NAMES
+from pour_gym.envs.rules import running_rise
 from pour_gym.errors import InputError
 
 _I = {name: k for k, name in enumerate(FEATURE_NAMES)}
@@ -215,12 +216,10 @@ class ScriptedPourPolicy:
             return action
         action = np.zeros(4)
         slow, back, lead = self.tilt_rates()
-        # What has left the source, as a running maximum: a particle flickering across
-        # the lip in and out of the source's cavity counts once (its +1/-1 as a flow
-        # would tilt the source back at every other step and stall the pour).
-        out = max(self._last_out, o[_I["poured"]] + o[_I["in_flight"]] + o[_I["spilled"]])
+        # What has left the source, as a running most (a flickering particle counts once).
+        out_now = o[_I["poured"]] + o[_I["in_flight"]] + o[_I["spilled"]]
+        flow, out = running_rise(out_now, self._last_out)
         if self.phase == "tilt":
-            flow = out - self._last_out
             self._last_out = out
             # The flow form names it (__call__ reads it while the phase is "tilt").
             self._wanted = self._want(out)

@@ -28,7 +28,7 @@ from tqdm import tqdm
 from pour_gym.agents.policies.rollout import rollout
 from pour_gym.agents.policies.scripted import approach_lip
 from pour_gym.envs import POUR_V0
-from pour_gym.envs.pour import FEATURE_NAMES
+from pour_gym.envs.pour_observation import FEATURE_NAMES
 from pour_gym.envs.rules import UPRIGHT_DEG
 from pour_gym.errors import InputError
 from pour_gym.features import cavity_points, held_volume

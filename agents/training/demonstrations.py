@@ -37,7 +37,7 @@ from tqdm import tqdm
 from pour_gym.agents.policies.rollout import Step, rollout
 from pour_gym.agents.policies.scripted import ScriptedPourPolicy
 from pour_gym.envs import make, task_of
-from pour_gym.envs.rules import tilt_action
+from pour_gym.envs.actions import tilt_action
 from pour_gym.errors import InputError
 
 # The env forms a demonstration records in: the expert's rate as it is, or as the tilt

@@ -25,7 +25,7 @@ import dataclasses
 import numpy as np
 
 from pour_gym.envs.base import fluid_config_at
-from pour_gym.fluid.validation import DAM_WIDTH, KOSHIZUKA_OKA, MARTIN_MOYCE, dam_break
+from pour_gym.fluid.flows import DAM_WIDTH, KOSHIZUKA_OKA, MARTIN_MOYCE, dam_break
 
 EXPERIMENTS = {
     "Martin and Moyce": MARTIN_MOYCE["a = 2.25 in"],

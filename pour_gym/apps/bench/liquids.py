@@ -12,7 +12,7 @@
   where the fluid cannot carry it at this spacing.
 
 :func:`bench_flows`: water draining through a hole (Torricelli), a dam break (Martin and
-Moyce), and each preset poured from the red cup (:func:`pour_gym.fluid.validation.efflux`,
+Moyce), and each preset poured from the red cup (:func:`pour_gym.fluid.flows.efflux`,
 ``dam_break``; :func:`pour_gym.sim.liquid_pour.liquid_pour`), with a figure of each.
 """
 
@@ -112,9 +112,9 @@ def bench_flows(liquids: tuple[str, ...] = ("water", "oil", "syrup", "honey"), o
     """
     from dataclasses import asdict
 
+    from pour_gym.fluid.flows import DAM_WIDTH, dam_break, efflux, gate_speed_limit
     from pour_gym.fluid.liquid import PRESETS
     from pour_gym.fluid.pbf import PBFConfig
-    from pour_gym.fluid.validation import DAM_WIDTH, dam_break, efflux, gate_speed_limit
     from pour_gym.sim.liquid_pour import liquid_pour
 
     def plain(result) -> dict:
@@ -153,7 +153,7 @@ def bench_flows(liquids: tuple[str, ...] = ("water", "oil", "syrup", "honey"), o
 def bench_efflux(
     spacings: tuple[float, ...] = (0.005, 0.0035, 0.0025), scales: tuple[float, ...] = (1.0,)
 ) -> dict:
-    """Water's efflux (:func:`~pour_gym.fluid.validation.efflux`) at each particle spacing.
+    """Water's efflux (:func:`~pour_gym.fluid.flows.efflux`) at each particle spacing.
 
     The hole is 12 mm in radius at every spacing; the particles' centres keep about half a
     spacing from its edge, so the finer the spacing, the more of the hole the stream fills
@@ -179,7 +179,8 @@ def bench_efflux(
     import numpy as np
 
     from pour_gym.envs.base import fluid_config_at
-    from pour_gym.fluid.validation import HOLE_RADIUS, R_IN, efflux
+    from pour_gym.fluid.flows import HOLE_RADIUS, efflux
+    from pour_gym.fluid.validation import R_IN
 
     bad = [x for x in scales if not 0.25 <= x <= 4.0]
     if bad:
@@ -230,8 +231,8 @@ def flows_figure(doc: dict, out) -> str:
     import matplotlib.pyplot as plt
     import numpy as np
 
+    from pour_gym.fluid.flows import MARTIN_MOYCE
     from pour_gym.fluid.liquid import PRESETS
-    from pour_gym.fluid.validation import MARTIN_MOYCE
 
     folder = Path(out)
     folder.mkdir(parents=True, exist_ok=True)
